@@ -1,0 +1,228 @@
+"""Workspace, obstacle regions sampled as Halton point clouds, and the virtual LiDAR.
+
+A region is a solid shape (boxes, cylinders, and their unions and differences, so nonconvex
+shapes such as an L-wall or a U-channel are easy) filled with a scrambled, seeded Halton
+sequence (``scipy.stats.qmc.Halton``) at a given density, as in Section V. A
+:class:`Scene` holds the regions' clouds, the start and the sequence of targets; a
+:class:`Lidar` returns, per region, the points inside a sphere of radius r_s around the UAV.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+from scipy.stats import qmc
+
+WORKSPACE_LOWER = np.array([-25.0, -25.0, 0.0])
+WORKSPACE_UPPER = np.array([25.0, 25.0, 25.0])
+
+
+# --- shapes ---------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Box:
+    """Axis-aligned box. ``center`` (3,) and ``size`` (3,) edge lengths, m."""
+
+    center: tuple[float, float, float]
+    size: tuple[float, float, float]
+
+    def contains(self, p: np.ndarray) -> np.ndarray:
+        half = np.asarray(self.size) / 2
+        return np.all(np.abs(p - np.asarray(self.center)) <= half, axis=-1)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        c, half = np.asarray(self.center, float), np.asarray(self.size, float) / 2
+        return c - half, c + half
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """Vertical cylinder: ``base`` (3,) centre of the bottom disc, ``radius`` and ``height``, m."""
+
+    base: tuple[float, float, float]
+    radius: float
+    height: float
+
+    def contains(self, p: np.ndarray) -> np.ndarray:
+        b = np.asarray(self.base)
+        radial = np.sum((p[..., :2] - b[:2]) ** 2, axis=-1) <= self.radius**2
+        return radial & (p[..., 2] >= b[2]) & (p[..., 2] <= b[2] + self.height)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        b = np.asarray(self.base, float)
+        r = self.radius
+        return b - [r, r, 0.0], b + [r, r, self.height]
+
+
+@dataclass(frozen=True)
+class Union:
+    """Points in any of ``parts``."""
+
+    parts: tuple
+
+    def contains(self, p: np.ndarray) -> np.ndarray:
+        return np.any([s.contains(p) for s in self.parts], axis=0)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        lo, hi = zip(*(s.bounds() for s in self.parts))
+        return np.min(lo, axis=0), np.max(hi, axis=0)
+
+
+@dataclass(frozen=True)
+class Difference:
+    """Points in ``outer`` but not in ``inner`` (e.g. a U-channel = box minus box)."""
+
+    outer: object
+    inner: object
+
+    def contains(self, p: np.ndarray) -> np.ndarray:
+        return self.outer.contains(p) & ~self.inner.contains(p)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.outer.bounds()
+
+
+# --- regions and scenes ---------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Region:
+    """A nonfeasible region: a ``shape`` sampled at ``density`` points per m³."""
+
+    name: str
+    shape: object
+    density: float = 3.0
+
+    def __post_init__(self):
+        if not (math.isfinite(self.density) and self.density > 0):
+            raise ValueError(f"density must be a finite number > 0 (points/m³), got {self.density!r}")
+
+
+def halton_cloud(shape, density: float, seed: int) -> np.ndarray:
+    """Fill ``shape`` with scrambled Halton points (seeded, reproducible).
+
+    The sequence is drawn in the shape's bounding box, ``density``·volume(box) points, and
+    the points outside the shape are dropped, so the density inside is ``density`` for any
+    shape. Returns (m, 3), m.
+    """
+    if not (math.isfinite(density) and density > 0):
+        raise ValueError(f"density must be a finite number > 0 (points/m³), got {density!r}")
+    lo, hi = shape.bounds()
+    n = max(1, int(round(density * float(np.prod(hi - lo)))))
+    sample = qmc.Halton(d=3, scramble=True, seed=seed).random(n)
+    points = qmc.scale(sample, lo, hi)
+    return points[shape.contains(points)]
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Regions with their clouds, a start position and targets to visit in order.
+
+    Attributes
+    ----------
+    name : str.
+    regions : tuple of :class:`Region`.
+    start : (3,) initial position, m.
+    targets : (k, 3) set-points y_t, m, visited in sequence.
+    seed : base seed of the Halton clouds (region i uses ``seed + i``).
+    clouds : tuple of (m_i, 3) arrays, computed from the above at construction.
+    """
+
+    name: str
+    regions: tuple
+    start: tuple
+    targets: tuple
+    seed: int = 7
+    clouds: tuple = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        start = np.asarray(self.start, float)
+        targets = np.atleast_2d(np.asarray(self.targets, float))
+        for label, pts in (("start", start[None]), ("targets", targets)):
+            if pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
+                raise ValueError(f"{label} must be finite 3-D positions, got shape {pts.shape}")
+        clouds = tuple(halton_cloud(r.shape, r.density, self.seed + i)
+                       for i, r in enumerate(self.regions))
+        for r, c in zip(self.regions, clouds):
+            if len(c) == 0:
+                raise ValueError(f"region {r.name!r} holds no point at density {r.density}")
+        object.__setattr__(self, "clouds", clouds)
+
+    @property
+    def all_points(self) -> np.ndarray:
+        """(Σm_i, 3) every point of every region."""
+        return np.concatenate(self.clouds) if self.clouds else np.zeros((0, 3))
+
+
+def make_scene(name: str, seed: int = 7) -> Scene:
+    """The named scene: ``"paper"`` (Section V mission) or ``"encounter"`` (one region, short)."""
+    builders = {"paper": paper_scene, "encounter": encounter_scene}
+    if name not in builders:
+        raise ValueError(f"scenario must be one of {tuple(builders)}, got {name!r}")
+    return builders[name](seed)
+
+
+def paper_scene(seed: int = 7) -> Scene:
+    """Section V: start [22, −22, 0], targets [−12, 18, 11] then [−21, 18, 0].
+
+    The regions straddle the straight segments between these points, so the UAV has to go
+    around them: a block tower near the start, a nonconvex L-shaped wall and a U-channel
+    along the first leg, and a cylinder on the descent of the second leg.
+    """
+    regions = (
+        Region("tower", Box((14.0, -12.5, 3.0), (2.0, 2.0, 6.0))),
+        Region("L-wall", Union((Box((5.0, -2.0, 5.5), (6.0, 1.0, 5.0)),
+                                Box((2.5, 0.0, 5.5), (1.0, 5.0, 5.0))))),
+        Region("U-channel", Difference(Box((-4.0, 8.5, 8.5), (5.0, 2.0, 5.0)),
+                                        Box((-4.0, 9.0, 9.5), (3.0, 2.0, 3.0)))),
+        Region("column", Cylinder((-16.5, 17.5, 0.0), 1.2, 9.0)),
+    )
+    return Scene("paper", regions, (22.0, -22.0, 0.0), ((-12.0, 18.0, 11.0), (-21.0, 18.0, 0.0)),
+                 seed)
+
+
+def encounter_scene(seed: int = 7) -> Scene:
+    """A short flight past one nonconvex region (an L-shaped corner) for tests and benchmarks.
+
+    The UAV starts about 3 m before the corner, at 2 m height, with its straight line to the
+    target grazing the corner, so the barrier must bend the path within a few hundred steps.
+    """
+    regions = (
+        Region("corner", Union((Box((3.0, 0.75, 2.0), (1.0, 2.5, 3.0)),
+                                Box((4.5, 1.5, 2.0), (3.0, 1.0, 3.0))))),
+    )
+    return Scene("encounter", regions, (0.0, 0.0, 2.0), ((8.0, 0.0, 2.0),), seed)
+
+
+# --- LiDAR ----------------------------------------------------------------------------------
+
+class Lidar:
+    """Virtual spherical LiDAR of range r_s (m) over a scene's clouds.
+
+    One KD-tree over all points is built at construction; :meth:`scan` is a ball query.
+    """
+
+    def __init__(self, clouds, range_: float = 3.0):
+        if not (math.isfinite(range_) and range_ > 0):
+            raise ValueError(f"lidar range must be a finite number > 0 (m), got {range_!r}")
+        self.range = float(range_)
+        self.clouds = tuple(np.asarray(c, float).reshape(-1, 3) for c in clouds)
+        self._labels = np.concatenate(
+            [np.full(len(c), i) for i, c in enumerate(self.clouds)] or [np.zeros(0, int)])
+        points = np.concatenate(self.clouds) if self.clouds else np.zeros((0, 3))
+        self._points = points
+        self._tree = cKDTree(points) if len(points) else None
+
+    def scan(self, position) -> list[np.ndarray]:
+        """Visible points of each region: a list (one entry per region) of (k_i, 3) arrays,
+        k_i = 0 for a region out of range. Points are returned in their cloud order."""
+        p = np.asarray(position, float)
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ValueError(f"position must be a finite (3,) array, got {p!r}")
+        if self._tree is None:
+            return [np.zeros((0, 3)) for _ in self.clouds]
+        idx = np.sort(np.asarray(self._tree.query_ball_point(p, self.range), dtype=int))
+        labels = self._labels[idx]
+        return [self._points[idx[labels == i]] for i in range(len(self.clouds))]
