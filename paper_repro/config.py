@@ -40,7 +40,8 @@ class QuadrotorParams:
         for name in ("mass", "arm", "gravity", "thrust_coefficient", "drag_coefficient"):
             _require_positive(name, getattr(self, name))
         if len(self.inertia) != 3 or not all(math.isfinite(i) and i > 0 for i in self.inertia):
-            raise ValueError(f"inertia must be three finite values > 0 (kg·m²), got {self.inertia!r}")
+            raise ValueError(
+                f"inertia must be three finite values > 0 (kg·m²), got {self.inertia!r}")
 
     @property
     def yaw_torque_ratio(self) -> float:
@@ -163,8 +164,8 @@ class NMPCParams:
     input_lower: tuple[float, ...] = _diag(0, 0, 0, 0)
     input_upper: tuple[float, ...] = _diag(12, 12, 12, 12)
     lam: float = 0.99
-    region_slots: int = 4
-    points_per_region: int = 160
+    region_slots: int = 2
+    points_per_region: int = 120
 
     def __post_init__(self):
         if not (isinstance(self.horizon, int) and self.horizon >= 1):

@@ -60,13 +60,16 @@ def symbolic_dynamics(params: QuadrotorParams | None = None) -> ca.Function:
     return ca.Function("f_c", [x, u], [xdot], ["x", "u"], ["xdot"])
 
 
-def rk4_discretisation(ts: float, params: QuadrotorParams | None = None, steps: int = 1) -> ca.Function:
+def rk4_discretisation(ts: float, params: QuadrotorParams | None = None,
+                       steps: int = 1) -> ca.Function:
     """One RK4 step of length ``ts`` (split into ``steps`` sub-steps), zero-order-hold input.
 
     Returns the CasADi function ``f(x[12], u[4]) -> x_next[12]`` used as prediction model (eq. 1).
     """
     if not (ts > 0 and math.isfinite(ts)):
         raise ValueError(f"ts must be a finite number > 0 (s), got {ts!r}")
+    if not (isinstance(steps, int) and steps >= 1):
+        raise ValueError(f"steps must be an integer >= 1, got {steps!r}")
     f_c = symbolic_dynamics(params)
     x = ca.SX.sym("x", N_STATES)
     u = ca.SX.sym("u", N_INPUTS)
@@ -87,6 +90,8 @@ def plant_step(x, u, ts: float, params: QuadrotorParams | None = None,
     counterpart) under zero-order hold of ``u``. Returns the (12,) state at t + ts."""
     x = _check_vector("x", x, N_STATES)
     u = _check_vector("u", u, N_INPUTS)
+    if not (ts > 0 and math.isfinite(ts)):  # NaN would hang solve_ivp, ts < 0 runs backwards
+        raise ValueError(f"ts must be a finite number > 0 (s), got {ts!r}")
     params = params or QuadrotorParams()
     sol = solve_ivp(
         lambda _t, s: _dynamics_terms(s, u, params, math.sin, math.cos),

@@ -1,0 +1,93 @@
+"""Command line: ``python -m paper_repro {run,scene} ...``.
+
+    python -m paper_repro run --scenario encounter --metric smooth --max-steps 500 --out results/x
+    python -m paper_repro scene --scenario paper
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+
+import numpy as np
+
+from .config import Config
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m paper_repro", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    run = sub.add_parser("run", help="fly one closed-loop mission and save its result")
+    run.add_argument("--scenario", choices=("paper", "encounter"), default="paper")
+    run.add_argument("--metric", choices=("smooth", "euclidean"), default="smooth")
+    run.add_argument("--max-steps", type=_positive_int, default=None,
+                     help="limit on closed-loop steps (default: the config's max_steps)")
+    run.add_argument("--out", required=True, help="directory for result.npz and config.json")
+    run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+    scene = sub.add_parser("scene", help="print a scene and a distance table")
+    scene.add_argument("--scenario", choices=("paper", "encounter"), default="paper")
+
+    args = parser.parse_args(argv)
+    if args.command == "run":
+        return _run(args)
+    return _scene(args)
+
+
+def _run(args) -> int:
+    from .simulation import simulate
+
+    cfg = Config()
+    cfg = dataclasses.replace(
+        cfg,
+        distance=dataclasses.replace(cfg.distance, metric=args.metric),
+        simulation=dataclasses.replace(cfg.simulation, scenario=args.scenario),
+    )
+    result = simulate(cfg, max_steps=args.max_steps,
+                      progress=False if args.no_progress else None)
+    out = result.save(args.out)
+    print(f"{result.summary()} -> {out}")
+    return 0
+
+
+def _scene(args) -> int:
+    from .distance import clearance, euclidean_distance, smooth_distance
+    from .scene import make_scene
+
+    cfg = Config()
+    scene = make_scene(args.scenario, cfg.simulation.seed)
+    eta, sigma = cfg.distance.eta, cfg.distance.sigma
+    print(f"scene {scene.name!r}: start {list(scene.start)}, targets "
+          f"{[list(t) for t in scene.targets]}")
+    print(f"{'region':<12}{'points':>8}   {'centroid':<24}")
+    for region, cloud in zip(scene.regions, scene.clouds, strict=True):
+        c = [round(float(v), 2) for v in cloud.mean(axis=0)]
+        print(f"{region.name:<12}{len(cloud):>8}   {str(c):<24}")
+    print(f"\nD_η,σ (η = {eta} m, σ = {sigma} m) against ½d² from the start to the first "
+          "region (m²; clearance d in m):")
+    print(f"{'d':>8}{'½d²':>10}{'D':>10}")
+    cloud = scene.clouds[0]
+    start = np.asarray(scene.start, float)
+    proj = cloud[np.argmin(np.sum((cloud - start) ** 2, axis=1))]
+    for s in np.linspace(0.0, 1.0, 8):
+        y = proj + s * (start - proj)
+        print(f"{clearance(y, cloud):8.3f}{euclidean_distance(y, cloud):10.3f}"
+              f"{smooth_distance(y, cloud, eta, sigma):10.3f}")
+    return 0
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {value}")
+    return value
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
