@@ -143,6 +143,10 @@ class NMPCParams:
         i.e. 25 cm inside the 25 m workspace walls; the relaxation only needs to keep
         (x_a, u_a) off the boundary (Limon et al. 2018), and the paper's targets sit at
         z = 0, which is the boundary itself (see ``relaxed_bounds``).
+    solver : ``"rti"`` (default, Gauss-Newton SQP with HPIPM, :mod:`paper_repro.rti`) or
+        ``"reference"`` (IPOPT with the exact Hessian, :mod:`paper_repro.nmpc`, as the paper).
+    sqp_iterations : SQP iterations per sampling instant of the ``rti`` solver (1 is the
+        real-time iteration).
     region_slots : number of LiDAR-visible regions the NLP can hold at once.
     points_per_region : capacity of each region slot; scans with more visible points are
         reduced to the nearest ones (see ``paper_repro.nmpc``).
@@ -164,6 +168,8 @@ class NMPCParams:
     input_lower: tuple[float, ...] = _diag(0, 0, 0, 0)
     input_upper: tuple[float, ...] = _diag(12, 12, 12, 12)
     lam: float = 0.99
+    solver: str = "rti"
+    sqp_iterations: int = 1
     region_slots: int = 2
     points_per_region: int = 120
 
@@ -182,7 +188,8 @@ class NMPCParams:
             raise ValueError("r and t must be > 0 (R ≻ 0, T ≻ 0)")
         if not (0.0 < self.lam < 1.0):
             raise ValueError(f"lam must lie in (0, 1), got {self.lam!r}")
-        for name in ("region_slots", "points_per_region"):
+        _require_choice("solver", self.solver, ("rti", "reference"))
+        for name in ("region_slots", "points_per_region", "sqp_iterations"):
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= 1):
                 raise ValueError(f"{name} must be an integer >= 1, got {v!r}")

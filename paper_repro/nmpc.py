@@ -71,6 +71,20 @@ class NMPCSolution:
         return NMPCSolution(u, x, self.x_a.copy(), self.u_a.copy(), self.success, self.status,
                             0, 0.0, self.cost)
 
+    def reanchored(self, x0) -> NMPCSolution:
+        """The same plan moved rigidly so that it starts at the position of ``x0``.
+
+        The OCP is invariant to translations of position except through the target, the
+        regions and the workspace walls, which move slowly relative to one sampling period. In
+        cruise the optimal plan keeps its shape from one instant to the next (accelerate, then
+        stop at x_a within the horizon), so moving it, rather than shifting it in time, is the
+        better starting point for a single SQP iteration.
+        """
+        d = np.zeros_like(self.x_a)
+        d[:3] = np.asarray(x0, float)[:3] - self.x[0, :3]
+        return NMPCSolution(self.u.copy(), self.x + d, self.x_a + d, self.u_a.copy(),
+                            self.success, self.status, 0, 0.0, self.cost)
+
 
 class TrackingNMPC:
     """The paper's tracking NMPC, solved by IPOPT with the exact Hessian (the reference path).
@@ -84,6 +98,7 @@ class TrackingNMPC:
     """
 
     def __init__(self, config: Config | None = None, max_iter: int = 200, tol: float = 1e-8):
+        # Builds the NLP and IPOPT instance once: several seconds.
         self.config = config or Config()
         if not (isinstance(max_iter, int) and max_iter >= 1):
             raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
@@ -99,7 +114,7 @@ class TrackingNMPC:
     # --- public ------------------------------------------------------------------------------
 
     def solve(self, x0, target, visible: Sequence[np.ndarray] = (),
-              warm_start: NMPCSolution | None = None) -> NMPCSolution:
+              previous: NMPCSolution | None = None) -> NMPCSolution:
         """Solve the OCP from state ``x0`` towards output set-point ``target``.
 
         Parameters
@@ -107,20 +122,21 @@ class TrackingNMPC:
         x0 : (12,) current state.
         target : (3,) set-point y_t, m.
         visible : per region, the (k_i, 3) points the LiDAR sees (empty arrays allowed).
-        warm_start : previous solution, already shifted (see :meth:`NMPCSolution.shifted`);
-            hover at the current position if omitted.
+        previous : the plan of the previous sampling instant; the warm start is that plan
+            shifted by one step (see :meth:`NMPCSolution.shifted`). Hover at the current
+            position if omitted.
         """
+        start = time.perf_counter()  # solve_time includes packing the scan: the whole call
         x0 = _as_vector("x0", x0, N_STATES)
         target = _as_vector("target", target, 3)
         params = np.concatenate([target, self.obstacle_parameters(visible, x0[:3])])
-        guess = warm_start or self.hover_guess(x0)
+        guess = previous.shifted() if previous is not None else self.hover_guess(x0)
         w0 = self._pack(guess.x, guess.u, guess.x_a, guess.u_a)
         w0[self._ix[0]] = x0
         lbw, ubw = self._lbw.copy(), self._ubw.copy()
         lbw[self._ix[0]] = x0
         ubw[self._ix[0]] = x0
 
-        start = time.perf_counter()
         sol = self._solver(x0=w0, p=params, lbx=lbw, ubx=ubw, lbg=0.0, ubg=0.0)
         elapsed = time.perf_counter() - start
         stats = self._solver.stats()
@@ -141,53 +157,8 @@ class TrackingNMPC:
                             True, "guess", 0, 0.0, np.nan)
 
     def obstacle_parameters(self, visible: Sequence[np.ndarray], position) -> np.ndarray:
-        """Pack the LiDAR scan into the NLP's parameter layout.
-
-        Parameters
-        ----------
-        visible : per region, the (k_i, 3) visible points; regions with none are skipped.
-        position : (3,) UAV position, m. If more regions are visible than there are slots, the
-            nearest regions are kept; if a region shows more points than a slot holds, the
-            nearest points are kept.
-
-        Per slot the layout is (points (cap, 3) column-major, ln W (cap,), ln V, active) for
-        the smooth metric and (points, mask (cap,), active) for the Euclidean one.
-        """
-        sigma = self.config.distance.sigma
-        cap = self.points_per_region
-        ref = _as_vector("position", position, 3)
-        seen = [np.asarray(v, float).reshape(-1, 3) for v in visible]
-        seen = [v for v in seen if len(v)]
-        sq = [np.sum((v - ref) ** 2, axis=1) for v in seen]
-        if len(seen) > self.region_slots:
-            order = np.argsort([s.min() for s in sq])[: self.region_slots]
-            seen, sq = [seen[i] for i in order], [sq[i] for i in order]
-        blocks = []
-        for slot in range(self.region_slots):
-            pts = np.full((cap, 3), _FAR_AWAY)
-            if slot < len(seen):
-                cloud = seen[slot]
-                weights = dist.CloudWeights.from_cloud(cloud, sigma)
-                keep = np.arange(len(cloud))
-                if len(cloud) > cap:
-                    keep = np.sort(np.argsort(sq[slot])[:cap])
-                pts[: len(keep)] = cloud[keep]
-                log_w = np.full(cap, PAD_LOG_WEIGHT)
-                log_w[: len(keep)] = weights.log_weights[keep]
-                mask = np.zeros(cap)
-                mask[: len(keep)] = 1.0
-                log_v, active = weights.log_volume, 1.0
-            else:
-                log_w = np.full(cap, PAD_LOG_WEIGHT)
-                log_w[0] = 0.0
-                mask = np.zeros(cap)
-                mask[0] = 1.0
-                log_v, active = 0.0, 0.0
-            if self.metric == "smooth":
-                blocks.append(np.concatenate([pts.ravel(order="F"), log_w, [log_v, active]]))
-            else:
-                blocks.append(np.concatenate([pts.ravel(order="F"), mask, [active]]))
-        return np.concatenate(blocks) if blocks else np.zeros(0)
+        """The LiDAR scan in the NLP's parameter layout (see :func:`pack_scan`)."""
+        return pack_scan(visible, position, self.config)
 
     # --- construction --------------------------------------------------------------------------
 
@@ -218,7 +189,8 @@ class TrackingNMPC:
         region_params = []
         outputs = [X[:3, j] for j in range(n + 1)] + [ya]  # y_0..y_N, then y_{N+1} = y_a
         for _ in range(self.region_slots):
-            pr, barrier = self._region_barrier()
+            pr, barrier = region_barrier(cfg.distance.metric, cfg.distance.eta, b.d_min,
+                                         self.points_per_region)
             region_params.append(pr)
             beta = [barrier(y) for y in outputs]
             beta_a = beta[-1]
@@ -253,33 +225,97 @@ class TrackingNMPC:
         lbw[self._iua], ubw[self._iua] = ual, uau
         self._lbw, self._ubw = lbw, ubw
 
-    def _region_barrier(self):
-        """Symbolic parameters of one region slot and β(y) = D(y) − d_min as a function."""
-        cap = self.points_per_region
-        eta = self.config.distance.eta
-        d_min = self.config.barrier.d_min
-        pts = ca.SX.sym("points", cap, 3)
-        y = ca.SX.sym("y", 3)
-        if self.metric == "smooth":
-            log_w = ca.SX.sym("log_w", cap)
-            log_v = ca.SX.sym("log_v")
-            active = ca.SX.sym("active")
-            d = dist.smooth_distance_symbolic(y, pts, log_w, log_v, eta)
-            extra = [log_w, log_v]
-        else:
-            mask = ca.SX.sym("mask", cap)
-            active = ca.SX.sym("active")
-            d = dist.euclidean_distance_symbolic(y, pts, mask)
-            extra = [mask]
-        beta_fn = ca.Function("beta", [y, pts, *extra], [d - d_min])
-        pr = ca.vertcat(ca.vec(pts), *extra, active)
-        return pr, lambda yy: beta_fn(yy, pts, *extra)
-
     def _pack(self, x, u, x_a, u_a) -> np.ndarray:
         return np.concatenate([np.asarray(x).ravel(), np.asarray(u).ravel(), x_a, u_a])
 
     def _unpack(self, w):
         return w[self._ix], w[self._iu], w[self._ixa], w[self._iua]
+
+
+def make_controller(config: Config | None = None, **options):
+    """The controller named by ``config.nmpc.solver``: ``"rti"`` or ``"reference"``.
+
+    ``options`` go to the controller's constructor (e.g. ``max_iter`` for IPOPT).
+    """
+    config = config or Config()
+    if config.nmpc.solver == "reference":
+        return TrackingNMPC(config, **options)
+    from .rti import RealTimeNMPC
+
+    options.setdefault("max_iter", config.nmpc.sqp_iterations)
+    return RealTimeNMPC(config, **options)
+
+
+def pack_scan(visible: Sequence[np.ndarray], position, config: Config) -> np.ndarray:
+    """Pack a LiDAR scan into the parameter layout of the region slots.
+
+    Parameters
+    ----------
+    visible : per region, the (k_i, 3) visible points; regions with none are skipped.
+    position : (3,) UAV position, m. If more regions are visible than there are slots
+        (``config.nmpc.region_slots``), the nearest regions are kept; if a region shows more
+        points than a slot holds (``points_per_region``), the nearest points are kept.
+    config : supplies σ (for W and V, computed from the visible points) and the metric.
+
+    Per slot the layout is (points (cap, 3) column-major, ln W (cap,), ln V, active) for the
+    smooth metric and (points, mask (cap,), active) for the Euclidean one. Unused point slots
+    have ln W = −1e30 (mask 0); an unused region slot holds one dummy point and active = 0.
+    """
+    sigma, metric = config.distance.sigma, config.distance.metric
+    slots, cap = config.nmpc.region_slots, config.nmpc.points_per_region
+    ref = _as_vector("position", position, 3)
+    seen = [np.asarray(v, float).reshape(-1, 3) for v in visible]
+    seen = [v for v in seen if len(v)]
+    sq = [np.sum((v - ref) ** 2, axis=1) for v in seen]
+    if len(seen) > slots:
+        order = np.argsort([s.min() for s in sq])[:slots]
+        seen, sq = [seen[i] for i in order], [sq[i] for i in order]
+    blocks = []
+    for slot in range(slots):
+        pts = np.full((cap, 3), _FAR_AWAY)
+        log_w = np.full(cap, PAD_LOG_WEIGHT)
+        mask = np.zeros(cap)
+        if slot < len(seen):
+            cloud = seen[slot]
+            weights = dist.CloudWeights.from_cloud(cloud, sigma)
+            keep = np.arange(len(cloud))
+            if len(cloud) > cap:
+                keep = np.sort(np.argsort(sq[slot])[:cap])
+            pts[: len(keep)] = cloud[keep]
+            log_w[: len(keep)] = weights.log_weights[keep]
+            mask[: len(keep)] = 1.0
+            log_v, active = weights.log_volume, 1.0
+        else:
+            log_w[0], mask[0] = 0.0, 1.0
+            log_v, active = 0.0, 0.0
+        if metric == "smooth":
+            blocks.append(np.concatenate([pts.ravel(order="F"), log_w, [log_v, active]]))
+        else:
+            blocks.append(np.concatenate([pts.ravel(order="F"), mask, [active]]))
+    return np.concatenate(blocks)
+
+
+def region_barrier(metric: str, eta: float, d_min: float, capacity: int):
+    """Symbolic parameters of one region slot and β(y) = D(y) − d_min (eq. 18).
+
+    Returns ``(params, beta)``: ``params`` is the slot's parameter column (its last entry is
+    the ``active`` flag) and ``beta(y)`` the CasADi expression for a (3, 1) output ``y``.
+    """
+    pts = ca.SX.sym("points", capacity, 3)
+    y = ca.SX.sym("y", 3)
+    active = ca.SX.sym("active")
+    if metric == "smooth":
+        log_w = ca.SX.sym("log_w", capacity)
+        log_v = ca.SX.sym("log_v")
+        d = dist.smooth_distance_symbolic(y, pts, log_w, log_v, eta)
+        extra = [log_w, log_v]
+    else:
+        mask = ca.SX.sym("mask", capacity)
+        d = dist.euclidean_distance_symbolic(y, pts, mask)
+        extra = [mask]
+    beta_fn = ca.Function("beta", [y, pts, *extra], [d - d_min])
+    params = ca.vertcat(ca.vec(pts), *extra, active)
+    return params, lambda yy: beta_fn(yy, pts, *extra)
 
 
 def _softplus_penalty(g, kappa: float, epsilon: float):

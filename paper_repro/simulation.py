@@ -21,8 +21,8 @@ from scipy.spatial import cKDTree
 
 from .config import Config
 from .model import equilibrium, plant_step
-from .nmpc import NMPCSolution, TrackingNMPC
-from .scene import Lidar, make_scene
+from .nmpc import NMPCSolution, TrackingNMPC, make_controller
+from .scene import Lidar, Scene, make_scene
 
 _ARRAYS = ("t", "x", "u", "x_a", "u_a", "solve_time", "iterations", "success", "clearance",
            "target_index", "visible_points")
@@ -124,7 +124,8 @@ class SimulationResult:
 
 
 def simulate(config: Config | None = None, controller: TrackingNMPC | None = None,
-             max_steps: int | None = None, progress: bool | None = None) -> SimulationResult:
+             max_steps: int | None = None, progress: bool | None = None,
+             scene: Scene | None = None) -> SimulationResult:
     """Fly the configured scenario in closed loop.
 
     Parameters
@@ -134,6 +135,8 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
         the slow part, so pass one in when flying several missions).
     max_steps : overrides ``config.simulation.max_steps``.
     progress : show a progress bar (default: only when writing to a terminal).
+    scene : fly this scene instead of ``config.simulation.scenario`` (e.g. your own regions, or
+        a variant made with ``dataclasses.replace``); its name is stored in ``meta["scene"]``.
 
     A failed solve never stops the run: it is recorded in ``success``/``status`` and the
     previous plan, shifted by one step, is applied instead (its first input).
@@ -143,10 +146,10 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
         cfg = dataclasses.replace(cfg, simulation=dataclasses.replace(cfg.simulation,
                                                                       max_steps=max_steps))
     sim, ts = cfg.simulation, cfg.nmpc.ts
-    scene = make_scene(sim.scenario, sim.seed)
+    scene = scene if scene is not None else make_scene(sim.scenario, sim.seed)
     lidar = Lidar(scene.clouds, sim.lidar_range)
     truth = cKDTree(scene.all_points)
-    ctl = controller or TrackingNMPC(cfg)
+    ctl = controller or make_controller(cfg)
     targets = np.asarray(scene.targets, float)
 
     x, _ = equilibrium(scene.start, 0.0, cfg.quadrotor)
@@ -160,12 +163,11 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
     for k in range(sim.max_steps):
         target = targets[target_index]
         visible = lidar.scan(x[:3])
-        guess = plan.shifted() if plan is not None else None
-        sol = ctl.solve(x, target, visible, warm_start=guess)
+        sol = ctl.solve(x, target, visible, previous=plan)
         if sol.success:
             plan = sol
         else:
-            plan = guess if guess is not None else ctl.hover_guess(x)
+            plan = plan.shifted() if plan is not None else ctl.hover_guess(x)
         u = plan.u[0]
 
         for key, value in (("t", k * ts), ("x", x), ("u", u), ("x_a", sol.x_a),
@@ -196,6 +198,7 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
     arrays["status"] = arrays["status"].astype(str)
     meta = run_metadata()
     meta["wall_time_s"] = time.perf_counter() - wall
+    meta["scene"] = scene.name
     return SimulationResult(targets=targets, reached=reached, config=cfg, meta=meta, **arrays)
 
 

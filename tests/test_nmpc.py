@@ -84,7 +84,7 @@ def test_change_of_target_mid_flight_keeps_every_solve_feasible(smooth_controlle
     for k, target in enumerate(targets):
         if k == 60:
             y_a_at_switch = plan.x_a[:3].copy()
-        sol = ctl.solve(x, target, (), warm_start=plan.shifted() if plan else None)
+        sol = ctl.solve(x, target, (), previous=plan)
         assert sol.success, f"step {k}: {sol.status}"
         _check_bounds(ctl, sol, x)
         plan = sol
@@ -98,7 +98,7 @@ def test_target_outside_workspace_keeps_x_a_in_relaxed_box(smooth_controller):
     x, _ = equilibrium([24.7, -24.0, 24.85])
     plan = None
     for _ in range(40):
-        sol = ctl.solve(x, [60.0, -70.0, 40.0], (), warm_start=plan.shifted() if plan else None)
+        sol = ctl.solve(x, [60.0, -70.0, 40.0], (), previous=plan)
         assert sol.success
         _check_bounds(ctl, sol, x)
         plan = sol
@@ -120,7 +120,7 @@ def test_target_inside_cloud_settles_at_safe_equilibrium(smooth_controller, scen
     gaps = []
     for k in range(400):
         sol = ctl.solve(x, target, lidar.scan(x[:3]),
-                        warm_start=plan.shifted() if plan else None)
+                        previous=plan)
         assert sol.success, f"step {k}: {sol.status}"
         plan = sol
         x = plant_step(x, sol.u[0], ctl.config.nmpc.ts)

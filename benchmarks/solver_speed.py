@@ -1,0 +1,97 @@
+"""Closed-loop solve time and agreement of the NMPC solvers.
+
+    python benchmarks/solver_speed.py --scenario encounter --steps 2000
+
+Flies the same mission with the IPOPT reference and with the structure-exploiting solver
+(several SQP iteration counts), then prints, per solver: median / p95 / p99 / max wall time of
+one controller call in ms (Python overhead included: packing the scan, building the QP,
+solving), the median iteration count, the failed solves, the minimum clearance, and the largest
+position deviation from the reference trajectory. The last line is the same table as JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import platform
+import time
+
+import numpy as np
+
+from paper_repro import Config
+from paper_repro.nmpc import make_controller
+from paper_repro.simulation import simulate
+
+VARIANTS = {  # name -> (solver, controller options)
+    "reference": ("reference", {}),
+    "rti": ("rti", {"max_iter": 1}),
+    "sqp-2": ("rti", {"max_iter": 2}),
+    "sqp-converged": ("rti", {"max_iter": 30, "step_tol": 1e-9}),
+}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--scenario", default="encounter", choices=("encounter", "paper"))
+    parser.add_argument("--steps", type=int, default=2000)
+    parser.add_argument("--metric", default="smooth", choices=("smooth", "euclidean"))
+    parser.add_argument("--solvers", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
+    args = parser.parse_args()
+
+    base = Config()
+    base = dataclasses.replace(
+        base, simulation=dataclasses.replace(base.simulation, scenario=args.scenario),
+        distance=dataclasses.replace(base.distance, metric=args.metric))
+    runs = {}
+    for name in args.solvers:
+        solver, options = VARIANTS[name]
+        cfg = dataclasses.replace(base, nmpc=dataclasses.replace(base.nmpc, solver=solver))
+        t0 = time.perf_counter()
+        ctl = make_controller(cfg, **options)
+        build = time.perf_counter() - t0
+        runs[name] = simulate(cfg, controller=ctl, max_steps=args.steps, progress=False)
+        print(f"# {name}: built in {build:.1f} s, flew {runs[name].steps} steps in "
+              f"{runs[name].meta['wall_time_s']:.1f} s", flush=True)
+
+    ref = runs.get("reference")
+    rows = []
+    for name, r in runs.items():
+        ms = r.solve_time * 1e3
+        dev = np.nan
+        if ref is not None:
+            k = min(len(ref.x), len(r.x))
+            dev = float(np.max(np.linalg.norm(r.x[:k, :3] - ref.x[:k, :3], axis=1)))
+        rows.append({"solver": name, "median_ms": float(np.median(ms)),
+                     "p95_ms": float(np.percentile(ms, 95)),
+                     "p99_ms": float(np.percentile(ms, 99)), "max_ms": float(ms.max()),
+                     "iterations_median": float(np.median(r.iterations)),
+                     "failures": r.failures, "max_dev_m": dev,
+                     "min_clearance_m": float(r.clearance.min())})
+
+    print(f"\n{args.scenario}, {args.metric} metric, {args.steps} steps, "
+          f"{platform.processor() or platform.machine()} ({_cpu_name()}), "
+          f"{__import__('os').cpu_count()} cores")
+    header = ("solver", "median ms", "p95 ms", "p99 ms", "max ms", "iters", "failures",
+              "max dev m", "min clear m")
+    print("".join(f"{h:>14}" for h in header))
+    for row in rows:
+        print(f"{row['solver']:>14}{row['median_ms']:14.2f}{row['p95_ms']:14.2f}"
+              f"{row['p99_ms']:14.2f}{row['max_ms']:14.2f}{row['iterations_median']:14.0f}"
+              f"{row['failures']:14d}{row['max_dev_m']:14.2e}{row['min_clearance_m']:14.3f}")
+    print(json.dumps(rows))
+
+
+def _cpu_name() -> str:
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return "unknown CPU"
+
+
+if __name__ == "__main__":
+    main()

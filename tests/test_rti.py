@@ -1,0 +1,101 @@
+"""The structure-exploiting solver (Gauss-Newton SQP + HPIPM) against the IPOPT reference."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from paper_repro import Config, DistanceParams, Lidar, NMPCParams, SimulationParams, make_scene
+from paper_repro.model import equilibrium, rk4_discretisation
+from paper_repro.nmpc import TrackingNMPC, make_controller
+from paper_repro.rti import RealTimeNMPC
+from paper_repro.simulation import simulate
+
+SMALL = NMPCParams(region_slots=1, points_per_region=48)
+
+
+def _config(metric="smooth", solver="rti"):
+    return Config(distance=DistanceParams(metric=metric),
+                  simulation=SimulationParams(scenario="encounter"),
+                  nmpc=dataclasses.replace(SMALL, solver=solver))
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return make_scene("encounter")
+
+
+@pytest.fixture(scope="module")
+def reference():
+    return TrackingNMPC(_config(solver="reference"))
+
+
+def test_make_controller_follows_the_config():
+    assert isinstance(make_controller(_config(solver="rti")), RealTimeNMPC)
+    assert isinstance(make_controller(_config(solver="reference")), TrackingNMPC)
+    with pytest.raises(ValueError, match="solver"):
+        NMPCParams(solver="acados")
+
+
+def test_converged_sqp_reaches_the_ipopt_optimum(reference, scene):
+    """Iterated to convergence, the Gauss-Newton SQP solves the same OCP: same optimum."""
+    fast = RealTimeNMPC(_config(), max_iter=40, step_tol=1e-10)
+    x0, _ = equilibrium([-18.3, 0.2, 2.0])
+    x0[6] = 0.2  # moving towards the region
+    visible = Lidar(scene.clouds).scan(x0[:3])
+    assert sum(len(v) for v in visible) > 0
+    ref = reference.solve(x0, scene.targets[0], visible)
+    sol = fast.solve(x0, scene.targets[0], visible)
+    assert ref.success and sol.success and sol.status == "converged"
+    np.testing.assert_allclose(sol.x_a, ref.x_a, atol=1e-5)
+    np.testing.assert_allclose(sol.x, ref.x, atol=1e-4)
+    np.testing.assert_allclose(sol.u, ref.u, atol=1e-3)
+    # Feasibility of the fast solution itself: dynamics, x_N = x_a, bounds.
+    f = rk4_discretisation(0.01)
+    for j in range(fast.horizon):
+        np.testing.assert_allclose(np.asarray(f(sol.x[j], sol.u[j])).ravel(), sol.x[j + 1],
+                                   atol=1e-8)
+    np.testing.assert_allclose(sol.x[-1], sol.x_a, atol=1e-8)
+    p = fast.config.nmpc
+    assert np.all(sol.u >= np.array(p.input_lower) - 1e-8)
+    assert np.all(sol.u <= np.array(p.input_upper) + 1e-8)
+    assert np.all(np.abs(sol.x[1:, 9:]) <= np.pi / 2 + 1e-8)
+
+
+def test_fast_path_tracks_the_reference_in_closed_loop(reference, scene):
+    """A short closed loop along the corner: the real-time iteration stays on the reference
+    trajectory (a tolerance on states, never on time)."""
+    near = dataclasses.replace(scene, start=(-18.6, 0.0, 2.0))  # 1.6 m from the corner
+    ref = simulate(_config(solver="reference"), controller=reference, max_steps=250,
+                   progress=False, scene=near)
+    fast = simulate(_config(), controller=make_controller(_config()), max_steps=250,
+                    progress=False, scene=near)
+    assert fast.failures == 0 and ref.failures == 0
+    assert fast.visible_points.max() > 0
+    deviation = np.linalg.norm(fast.x[:, :3] - ref.x[:, :3], axis=1)
+    assert deviation.max() < 0.01
+    assert abs(fast.clearance.min() - ref.clearance.min()) < 0.01
+
+
+def test_euclidean_metric_runs_on_the_fast_path():
+    result = simulate(_config("euclidean"), max_steps=120, progress=False)
+    assert result.steps == 120
+    assert np.all(np.isfinite(result.x))
+
+
+def test_qp_failure_is_reported_not_raised(scene):
+    """An impossible step (initial state far outside the bounds) makes the QP fail; the solver
+    reports it and the closed loop would fall back on the shifted plan."""
+    fast = RealTimeNMPC(_config())
+    x0, _ = equilibrium([-18.0, 0.0, 2.0])
+    x0[10] = 40.0  # pitch rate far beyond π/2: x_1 cannot satisfy the rate bound
+    sol = fast.solve(x0, scene.targets[0], ())
+    assert not sol.success
+    assert sol.status == "qp_failed"
+
+
+def test_bad_options_are_rejected():
+    with pytest.raises(ValueError, match="max_iter"):
+        RealTimeNMPC(_config(), max_iter=0)
+    with pytest.raises(ValueError, match="x0"):
+        RealTimeNMPC(_config()).solve(np.zeros(3), np.zeros(3))
