@@ -168,17 +168,23 @@ def make_scene(name: str, seed: int = 7) -> Scene:
 def paper_scene(seed: int = 7) -> Scene:
     """Section V: start [22, −22, 0], targets [−12, 18, 11] then [−21, 18, 0].
 
-    The regions straddle the straight segments between these points, so the UAV has to go
-    around them: a block tower near the start, a nonconvex L-shaped wall and a U-channel
-    along the first leg, and a cylinder on the descent of the second leg.
+    The paper does not give its regions, only that they lie across the flight (Figs. 1-3).
+    Under the printed weights the UAV first climbs to the target height and then flies the
+    straight line in the horizontal plane, so the regions straddle that path at flight level,
+    each offset so that the straight path cuts its edge by about half a metre:
+
+    * ``tower``: a 16 m tall box a quarter of the way along the first leg;
+    * ``L-wall``: a nonconvex L of two 1 m thick walls, half-way along the first leg;
+    * ``U-channel``: a floating box with a channel cut into its far side (nonconvex);
+    * ``column``: a cylinder on the descent of the second leg.
     """
     regions = (
-        Region("tower", Box((14.0, -12.5, 3.0), (2.0, 2.0, 6.0))),
-        Region("L-wall", Union((Box((5.0, -2.0, 5.5), (6.0, 1.0, 5.0)),
-                                Box((2.5, 0.0, 5.5), (1.0, 5.0, 5.0))))),
-        Region("U-channel", Difference(Box((-4.0, 8.5, 8.5), (5.0, 2.0, 5.0)),
-                                        Box((-4.0, 9.0, 9.5), (3.0, 2.0, 3.0)))),
-        Region("column", Cylinder((-16.5, 17.5, 0.0), 1.2, 9.0)),
+        Region("tower", Box((14.0, -11.55, 8.0), (2.0, 2.0, 16.0))),
+        Region("L-wall", Union((Box((5.5, -1.0, 11.0), (5.0, 1.0, 5.0)),
+                                Box((3.5, 1.0, 11.0), (1.0, 5.0, 5.0))))),
+        Region("U-channel", Difference(Box((-3.83, 9.78, 11.0), (3.0, 3.0, 4.0)),
+                                        Box((-3.83, 10.55, 11.0), (1.6, 1.5, 2.4)))),
+        Region("column", Cylinder((-16.5, 18.6, 0.0), 1.2, 12.0)),
     )
     return Scene("paper", regions, (22.0, -22.0, 0.0), ((-12.0, 18.0, 11.0), (-21.0, 18.0, 0.0)),
                  seed)
