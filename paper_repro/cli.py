@@ -1,7 +1,8 @@
-"""Command line: ``python -m paper_repro {run,scene} ...``.
+"""Command line: ``python -m paper_repro {run,scene,reproduce} ...``.
 
     python -m paper_repro run --scenario encounter --metric smooth --max-steps 500 --out results/x
     python -m paper_repro scene --scenario paper
+    python -m paper_repro reproduce [--quick]
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import sys
 
 import numpy as np
 
+from . import reproduce as _reproduce
 from .config import Config
 
 
@@ -31,7 +33,14 @@ def main(argv: list[str] | None = None) -> int:
     scene = sub.add_parser("scene", help="print a scene and a distance table")
     scene.add_argument("--scenario", choices=("paper", "encounter"), default="paper")
 
+    reproduce = sub.add_parser(
+        "reproduce", help="simulate what is missing, run every notebook, write figures/",
+        description=_reproduce.DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    _reproduce.add_arguments(reproduce)
+
     args = parser.parse_args(argv)
+    if args.command == "reproduce":
+        return _reproduce.main(args)
     if args.command == "run":
         return _run(args)
     return _scene(args)

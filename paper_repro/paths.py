@@ -1,0 +1,49 @@
+"""Where things live in the repository, so that notebooks work from any working directory.
+
+The repository root is the folder above this package (the package is installed in editable
+mode, ``pip install -e .``); set ``PAPER_REPRO_ROOT`` to point elsewhere, e.g. for a
+non-editable install.
+
+=====================  ===========================================================
+``figures_dir()``      committed figures of the full mission and the summary CSV
+``figures_dir(True)``  figures of a ``--quick`` run (git-ignored)
+``results_dir()``      cached simulation results, one folder per config hash (git-ignored)
+``notebooks_dir()``    the notebook sources (stored without outputs)
+``executed_dir()``     executed copies written by papermill (git-ignored)
+=====================  ===========================================================
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+ROOT_ENV = "PAPER_REPRO_ROOT"
+
+
+def repo_root() -> Path:
+    """The repository root: ``$PAPER_REPRO_ROOT`` if set, else the folder above the package."""
+    env = os.environ.get(ROOT_ENV)
+    return Path(env).resolve() if env else Path(__file__).resolve().parents[1]
+
+
+def figures_dir(quick: bool = False) -> Path:
+    """``figures/`` (full mission, committed) or ``figures/quick/`` (git-ignored)."""
+    base = repo_root() / "figures"
+    return base / "quick" if quick else base
+
+
+def results_dir() -> Path:
+    """``results/``: the simulation cache (git-ignored)."""
+    return repo_root() / "results"
+
+
+def notebooks_dir() -> Path:
+    """``notebooks/``: the notebook sources."""
+    return repo_root() / "notebooks"
+
+
+def executed_dir(quick: bool = False) -> Path:
+    """``notebooks/executed/`` (or its ``quick/`` subfolder): papermill's executed copies."""
+    base = notebooks_dir() / "executed"
+    return base / "quick" if quick else base

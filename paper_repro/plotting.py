@@ -1,0 +1,626 @@
+"""One function per figure of the paper (Section V), the tutorial figures, and the animation.
+
+=======================  ====================================================================
+Fig. 1                   :func:`plot_flight_3d` — trajectory, clouds, LiDAR spheres, targets
+Figs. 2, 3               :func:`plot_projection` with ``plane="xz"`` / ``"xy"``
+Figs. 4, 8               :func:`plot_thrusts` — f1..f4 and the artificial input u_a
+Figs. 5, 7               :func:`plot_tracking_errors` — |e_x|, |e_y|, |e_z|, e = y − y_t
+Fig. 6                   :func:`plot_states` — x, y, z with the artificial state y_a
+summary                  :func:`plot_solve_times`, :func:`plot_input_spectrum`
+tutorial (eq. 8–13)      :func:`plot_distance_slice`, :func:`plot_eta_sigma`,
+                         :func:`plot_gradient_field`, :func:`plot_half_squared_limit`
+video                    :func:`animate_flight` (GIF)
+=======================  ====================================================================
+
+Each function takes a :class:`~paper_repro.simulation.SimulationResult` (and the
+:class:`~paper_repro.scene.Scene` it flew in, see :func:`scene_of`) and returns the matplotlib
+Figure; pass ``ax``/``axes`` to draw into an existing one. Long runs are decimated for drawing
+(at most ``max_points`` per line) with a min/max envelope, so chattering keeps its visible
+amplitude. :func:`save_figure` writes PDF (without a creation date, so byte-stable) and PNG.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+import numpy as np
+from scipy.spatial import cKDTree
+
+from . import metrics
+from .distance import (
+    CloudWeights,
+    euclidean_distance,
+    smooth_distance,
+    smooth_projection,
+)
+from .scene import WORKSPACE_LOWER, WORKSPACE_UPPER, Lidar, make_scene
+
+MAX_POINTS = 5000
+"""Default cap on the points drawn per line (a full mission has ≈135,000 steps)."""
+
+CLOUD_COLOR = "tab:red"
+SPHERE_COLOR = "tab:blue"
+AXIS_LABELS = ("x [m]", "y [m]", "z [m]")
+_LINESTYLES = ("-", "--", "-.", ":") * 4  # runs that coincide stay distinguishable
+
+
+# --- figures of the paper -------------------------------------------------------------------
+
+def plot_flight_3d(result, scene, ax=None, sphere_steps=None, n_spheres: int = 4,
+                   max_points: int = MAX_POINTS):
+    """Fig. 1: 3-D flight (black), clouds (red), translucent LiDAR spheres (blue), start, targets.
+
+    Parameters
+    ----------
+    result : SimulationResult.   scene : the Scene it flew in.
+    ax : a 3-D Axes to draw into (a new figure if omitted).
+    sphere_steps : steps at which to draw the LiDAR sphere; by default
+        :func:`lidar_instants` (closest approach to each region, else evenly spaced).
+    n_spheres : number of spheres when ``sphere_steps`` is None.
+    max_points : cap on drawn trajectory points.
+    """
+    fig, ax = _axes3d(ax)
+    pos = result.x[:, :3]
+    for i, cloud in enumerate(scene.clouds):
+        ax.scatter(*cloud.T, s=2, color=CLOUD_COLOR, alpha=0.6, depthshade=False,
+                   label="point clouds" if i == 0 else None)
+    idx = stride_indices(len(pos), max_points)
+    ax.plot(*pos[idx].T, color="black", lw=1.2, label="trajectory")
+    if sphere_steps is None:
+        sphere_steps = lidar_instants(result, scene, n_spheres)
+    r_s = result.config.simulation.lidar_range
+    for j, k in enumerate(sphere_steps):
+        _draw_sphere(ax, pos[k], r_s, label=f"LiDAR range ($r_s$ = {r_s:g} m)" if j == 0 else None)
+    _mark_start_and_targets(ax, scene, three_d=True)
+    _workspace_limits(ax, three_d=True)
+    ax.legend(loc="upper left", fontsize="small")
+    return fig
+
+
+def plot_projection(result, scene, plane: str = "xz", ax=None, max_points: int = MAX_POINTS):
+    """Figs. 2 and 3: the trajectory and the clouds projected onto the XZ or XY plane."""
+    if plane not in ("xz", "xy", "yz"):
+        raise ValueError(f"plane must be 'xz', 'xy' or 'yz', got {plane!r}")
+    axes_idx = ["xyz".index(c) for c in plane]
+    fig, ax = _axes(ax, figsize=(7, 4.5 if plane == "xy" else 3.5))
+    for i, cloud in enumerate(scene.clouds):
+        ax.scatter(cloud[:, axes_idx[0]], cloud[:, axes_idx[1]], s=3, color=CLOUD_COLOR,
+                   alpha=0.6, lw=0, label="point clouds" if i == 0 else None)
+    pos = result.x[:, :3]
+    idx = stride_indices(len(pos), max_points)
+    ax.plot(pos[idx, axes_idx[0]], pos[idx, axes_idx[1]], color="black", lw=1.2,
+            label="trajectory")
+    start = np.asarray(scene.start, float)
+    targets = np.atleast_2d(np.asarray(scene.targets, float))
+    ax.plot(start[axes_idx[0]], start[axes_idx[1]], "o", color="tab:green", label="start")
+    ax.plot(targets[:, axes_idx[0]], targets[:, axes_idx[1]], "*", ms=11, color="tab:purple",
+            label="targets")
+    ax.set_xlim(WORKSPACE_LOWER[axes_idx[0]], WORKSPACE_UPPER[axes_idx[0]])
+    ax.set_ylim(WORKSPACE_LOWER[axes_idx[1]], WORKSPACE_UPPER[axes_idx[1]])
+    ax.set_aspect("equal")
+    ax.set_xlabel(AXIS_LABELS[axes_idx[0]])
+    ax.set_ylabel(AXIS_LABELS[axes_idx[1]])
+    ax.set_title(f"projection onto the {plane.upper()}-plane")
+    ax.legend(loc="best", fontsize="small")
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def plot_thrusts(result, axes=None, max_points: int = MAX_POINTS, t_range=None):
+    """Figs. 4 and 8: thrusts f1..f4 (N) against time, with the artificial input u_a (dashed).
+
+    ``axes`` : four Axes (a new 4×1 figure if omitted). ``t_range`` : (t0, t1) s to draw only
+    part of the run, e.g. :func:`avoidance_window`.
+    """
+    fig, axes = _axes_column(axes, 4, figsize=(7, 6.5))
+    k = _steps_in(result, t_range)
+    t, u, u_a = result.t[k], result.u[k], result.u_a[k]
+    for i, ax in enumerate(axes):
+        idx = envelope_indices(u[:, i], max_points)
+        ax.plot(t[idx], u[idx, i], color="tab:blue", lw=0.8, label=f"$f_{i + 1}$")
+        idx = envelope_indices(u_a[:, i], max_points)
+        ax.plot(t[idx], u_a[idx, i], "--", color="tab:orange", lw=1.0,
+                label=f"$u_{{a,{i + 1}}}$")
+        ax.set_ylabel(f"$f_{i + 1}$ [N]")
+        ax.legend(loc="upper right", fontsize="small", ncol=2)
+        ax.grid(alpha=0.3)
+        _mark_target_switches(ax, result, t)
+    axes[-1].set_xlabel("t [s]")
+    axes[0].set_title(f"rotor thrusts ({result.config.distance.metric} distance)")
+    return fig
+
+
+def plot_tracking_errors(result, ax=None, max_points: int = MAX_POINTS, t_range=None):
+    """Figs. 5 and 7: absolute tracking errors |e_x|, |e_y|, |e_z| (m), e = y − y_t.
+
+    y_t is the set-point active at each step; dotted lines mark the target switches.
+    ``t_range`` : (t0, t1) s to draw only part of the run.
+    """
+    fig, ax = _axes(ax, figsize=(7, 3.5))
+    k = _steps_in(result, t_range)
+    t, e = result.t[k], np.abs(metrics.tracking_error(result))[k]
+    for i, name in enumerate("xyz"):
+        idx = envelope_indices(e[:, i], max_points)
+        ax.plot(t[idx], e[idx, i], lw=1.0, label=f"$|e_{name}|$")
+    _mark_target_switches(ax, result, t)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("absolute error [m]")
+    ax.set_title(f"output tracking error ({result.config.distance.metric} distance)")
+    ax.legend(loc="upper right", fontsize="small")
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def plot_states(result, axes=None, max_points: int = MAX_POINTS, t_range=None):
+    """Fig. 6: position x, y, z (m) against time with the artificial state y_a and the target.
+
+    ``t_range`` : (t0, t1) s to draw only part of the run.
+    """
+    fig, axes = _axes_column(axes, 3, figsize=(7, 5.5))
+    k = _steps_in(result, t_range)
+    t, pos, pos_a = result.t[k], result.x[:-1, :3][k], result.x_a[k, :3]
+    target = np.asarray(result.targets, float)[np.asarray(result.target_index, int)[k]]
+    for i, ax in enumerate(axes):
+        name = "xyz"[i]
+        idx = envelope_indices(pos[:, i], max_points)
+        ax.plot(t[idx], pos[idx, i], color="black", lw=1.0, label=f"${name}_\\mathcal{{I}}$")
+        idx = envelope_indices(pos_a[:, i], max_points)
+        ax.plot(t[idx], pos_a[idx, i], "--", color="tab:orange", lw=1.0, label=f"${name}_a$")
+        idx = stride_indices(len(t), max_points)
+        ax.plot(t[idx], target[idx, i], ":", color="tab:purple", lw=1.0, label=f"${name}_t$")
+        ax.set_ylabel(f"{name} [m]")
+        ax.legend(loc="upper right", fontsize="small", ncol=3)
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("t [s]")
+    axes[0].set_title(f"UAV position ({result.config.distance.metric} distance)")
+    return fig
+
+
+def avoidance_window(result, half_width: float = 10.0) -> tuple[float, float]:
+    """(t0, t1) s: ``half_width`` seconds either side of the closest approach to a cloud (the
+    step of minimum clearance), clipped to the run; for a zoomed view of the avoidance."""
+    t = np.asarray(result.t, float)
+    tc = t[int(np.argmin(result.clearance))]
+    return float(max(t[0], tc - half_width)), float(min(t[-1], tc + half_width))
+
+
+# --- summary figures ------------------------------------------------------------------------
+
+def plot_solve_times(results, ax=None, max_points: int = MAX_POINTS):
+    """Empirical distribution (CDF) of the solve times of each run, ms, log scale."""
+    fig, ax = _axes(ax, figsize=(6, 3.5))
+    for r, ls in zip(results, _LINESTYLES):
+        ms = np.sort(np.asarray(r.solve_time) * 1e3)
+        idx = stride_indices(len(ms), max_points)
+        ax.step(ms[idx], (idx + 1) / len(ms), where="post", ls=ls,
+                label=f"{r.config.distance.metric} (median {np.median(ms):.0f} ms)")
+    ax.set_xscale("log")
+    ax.set_xlabel("solve time [ms]")
+    ax.set_ylabel("fraction of steps")
+    ax.set_title("NMPC solve times")
+    ax.legend(loc="lower right", fontsize="small")
+    ax.grid(alpha=0.3, which="both")
+    return fig
+
+
+def plot_input_spectrum(results, cutoff_hz: float = metrics.DEFAULT_CUTOFF_HZ, ax=None):
+    """Power spectrum of the thrusts (:func:`~paper_repro.metrics.input_spectrum`, summed over
+    the rotors) with the cut-off marked: ``hf_energy_fraction`` is the share of the power to
+    the right of the dashed line."""
+    fig, ax = _axes(ax, figsize=(6, 3.5))
+    for r, ls in zip(results, _LINESTYLES):
+        freqs, psd = metrics.input_spectrum(r.u, r.config.nmpc.ts)
+        if len(freqs) < 2:
+            continue
+        ax.loglog(freqs[1:], psd[1:] + 1e-30, lw=0.9, ls=ls, label=r.config.distance.metric)
+    ax.axvline(cutoff_hz, ls="--", color="gray", label=f"cut-off {cutoff_hz:g} Hz")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("power [N²/Hz]")
+    ax.set_title("spectrum of the thrusts")
+    ax.legend(loc="lower left", fontsize="small")
+    ax.grid(alpha=0.3, which="both")
+    return fig
+
+
+# --- tutorial: the smoothed distance on a 2-D slice (eq. 8-13) ------------------------------
+
+def slice_grid(extent, z: float, n: int):
+    """Query points on the plane z = const: X, Y (n, n) and the points (n·n, 3), m.
+
+    ``extent`` : (x_min, x_max, y_min, y_max), m.
+    """
+    x0, x1, y0, y1 = extent
+    X, Y = np.meshgrid(np.linspace(x0, x1, n), np.linspace(y0, y1, n))
+    return X, Y, np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, float(z))])
+
+
+def plot_distance_slice(cloud, z: float, extent, eta: float, sigma: float, n: int = 200,
+                        axes=None, levels=None):
+    """D_{η,σ} (eq. 8) beside ½·d² on the plane z = const, same contour levels (m²).
+
+    The Euclidean level sets have kinks where two parts of the cloud are equally near (the
+    inside of a concave corner); those of D are smooth.
+    """
+    fig, axes = _axes_row(axes, 2, figsize=(10, 4.2))
+    X, Y, q = slice_grid(extent, z, n)
+    values = (smooth_distance(q, cloud, eta, sigma).reshape(X.shape),
+              euclidean_distance(q, cloud).reshape(X.shape))
+    levels = levels if levels is not None else [0.125, 0.5, 1.0, 2.0, 4.0, 8.0]
+    titles = (f"smoothed $D_{{\\eta,\\sigma}}$ (η = {eta:g} m, σ = {sigma:g} m)",
+              "Euclidean $\\frac{1}{2}d^2$")
+    for ax, v, title in zip(axes, values, titles):
+        filled = ax.contourf(X, Y, v, levels=[0, *levels, v.max() + 1], cmap="Blues_r",
+                             extend="neither")
+        lines = ax.contour(X, Y, v, levels=levels, colors="black", linewidths=0.8)
+        ax.clabel(lines, fmt="%g", fontsize="x-small")
+        _slice_points(ax, cloud, z)
+        ax.set_title(title, fontsize="medium")
+        _slice_axes(ax, extent)
+    fig.colorbar(filled, ax=list(axes), label="m²", shrink=0.9)
+    return fig
+
+
+def plot_eta_sigma(cloud, z: float, extent, etas=(0.1, 0.3, 0.6), sigmas=(0.8, 2.0, 100.0),
+                   eta: float = 0.3, sigma: float = 0.8, n: int = 120, level: float = 1.0):
+    """The level set D = ``level`` (m²) for several η (top row, σ fixed) and σ (bottom row,
+    η fixed), each against the Euclidean ½d² = ``level`` (dashed).
+
+    η (eq. 8) smooths the corners and, for a fixed level, pulls the set slightly outwards;
+    σ (eq. 9) weights the points near the centroid: a small σ lowers the weight of the
+    cloud's extremities, raising D there by up to η²·ln(V/W_j).
+    """
+    cols = max(len(etas), len(sigmas))
+    fig, axes = plt.subplots(2, cols, figsize=(3.3 * cols, 6.2), squeeze=False,
+                             constrained_layout=True)
+    X, Y, q = slice_grid(extent, z, n)
+    half_sq = euclidean_distance(q, cloud).reshape(X.shape)
+    rows = ([(e, sigma) for e in etas], [(eta, s) for s in sigmas])
+    for r, pairs in enumerate(rows):
+        for c in range(cols):
+            ax = axes[r, c]
+            if c >= len(pairs):
+                ax.set_visible(False)
+                continue
+            e, s = pairs[c]
+            d = smooth_distance(q, cloud, e, s).reshape(X.shape)
+            ax.contour(X, Y, half_sq, levels=[level], colors="gray", linestyles="--",
+                       linewidths=1.0)
+            ax.contourf(X, Y, d, levels=[0, level], colors=["tab:blue"], alpha=0.25)
+            ax.contour(X, Y, d, levels=[level], colors="tab:blue", linewidths=1.4)
+            _slice_points(ax, cloud, z)
+            ax.set_title(f"η = {e:g} m, σ = {s:g} m", fontsize="medium")
+            _slice_axes(ax, extent)
+    fig.suptitle(f"level set D = {level:g} m² (blue) against ½d² = {level:g} m² (dashed)")
+    return fig
+
+
+def plot_gradient_field(cloud, z: float, extent, eta: float, sigma: float, n: int = 25,
+                        axes=None):
+    """Directions of ∇D = y − Π (eq. 13, smooth) and of ∇(½d²) = y − a* (nearest point a*).
+
+    Arrows are unit vectors (in-plane part), coloured by the angle between the smooth and the
+    Euclidean directions; the Euclidean field flips across the line where two parts of the
+    cloud are equally near, the smooth one turns continuously.
+    """
+    fig, axes = _axes_row(axes, 2, figsize=(10, 4.2))
+    X, Y, q = slice_grid(extent, z, n)
+    smooth = q - smooth_projection(q, cloud, eta, sigma)
+    nearest = np.asarray(cloud)[cKDTree(cloud).query(q)[1]]
+    euclid = q - nearest
+    for ax, g, title in zip(axes, (smooth, euclid),
+                            (f"$y - \\Pi_{{\\eta,\\sigma}}(y)$ (η = {eta:g} m, σ = {sigma:g} m)",
+                             "$y - a^*(y)$, nearest point")):
+        u = g[:, :2] / np.maximum(np.linalg.norm(g[:, :2], axis=1, keepdims=True), 1e-12)
+        ax.quiver(X, Y, u[:, 0].reshape(X.shape), u[:, 1].reshape(X.shape), angles="xy",
+                  scale_units="xy", scale=n / (extent[1] - extent[0]) * 1.3, width=0.004,
+                  color="tab:blue")
+        _slice_points(ax, cloud, z)
+        ax.set_title(title, fontsize="medium")
+        _slice_axes(ax, extent)
+    return fig
+
+
+def plot_half_squared_limit(cloud, z: float, extent, etas=None, sigma: float = 0.8,
+                            n: int = 60, ax=None):
+    """Why D → ½d² as η → 0: the gap D − ½d² on the slice against η, with its bound.
+
+    D is a weighted soft-min of ½‖y − a_j‖², so  ½d² ≤ D ≤ ½d² + η²·ln(V/W_*)  (W_* the weight
+    of the nearest point): the gap vanishes like η². The plot shows the largest and the
+    median gap on the slice, and the bound η²·max_j ln(V/W_j).
+    """
+    fig, ax = _axes(ax, figsize=(6, 3.8))
+    etas = np.asarray(etas if etas is not None else np.geomspace(0.03, 1.0, 12), float)
+    X, Y, q = slice_grid(extent, z, n)
+    half_sq = euclidean_distance(q, cloud)
+    weights = CloudWeights.from_cloud(cloud, sigma)
+    worst_log_ratio = float(weights.log_volume - weights.log_weights.min())
+    gaps = np.array([smooth_distance(q, weights, e, sigma) - half_sq for e in etas])
+    ax.loglog(etas, gaps.max(axis=1), "o-", label="max over the slice")
+    ax.loglog(etas, np.median(gaps, axis=1), "s-", label="median over the slice")
+    ax.loglog(etas, etas**2 * worst_log_ratio, "k--",
+              label="bound $\\eta^2 \\max_j \\ln(V/W_j)$")
+    ax.set_xlabel("η [m]")
+    ax.set_ylabel("$D_{\\eta,\\sigma} - \\frac{1}{2}d^2$ [m²]")
+    ax.set_title(f"D tends to ½d² like η² (σ = {sigma:g} m)")
+    ax.legend(fontsize="small")
+    ax.grid(alpha=0.3, which="both")
+    return fig
+
+
+# --- animation ------------------------------------------------------------------------------
+
+def animate_flight(result, scene, path, frames: int = 100, fps: int = 12, dpi: int = 72,
+                   close_up: float = 5.0):
+    """GIF of the flight: whole workspace (left) and a close-up around the UAV (right), with
+    the LiDAR sphere and the points it sees highlighted.
+
+    Parameters
+    ----------
+    path : output file (``.gif``).  frames : number of frames, evenly spaced in time.
+    fps : frames per second of the GIF.  dpi : resolution (the GIF is 9 × 4.5 in).
+    close_up : half-width of the close-up view, m.
+
+    Returns the path written.
+    """
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    if not (isinstance(frames, int) and frames >= 1):
+        raise ValueError(f"frames must be an integer >= 1, got {frames!r}")
+    pos = result.x[:, :3]
+    r_s = result.config.simulation.lidar_range
+    lidar = Lidar(scene.clouds, r_s)
+    steps = np.unique(np.linspace(0, len(pos) - 1, frames).round().astype(int))
+    fig = plt.figure(figsize=(9, 4.5), dpi=dpi)
+    axes = [fig.add_subplot(1, 2, i + 1, projection="3d") for i in range(2)]
+    fig.subplots_adjust(left=0.0, right=0.97, bottom=0.05, top=0.92, wspace=0.05)
+    trail_idx = stride_indices(len(pos), MAX_POINTS)
+    artists = {"dynamic": []}
+    lines = []
+    for ax in axes:
+        for cloud in scene.clouds:
+            ax.scatter(*cloud.T, s=1, color=CLOUD_COLOR, alpha=0.25, depthshade=False)
+        (line,) = ax.plot([], [], [], color="black", lw=1.0)
+        lines.append(line)
+    _mark_start_and_targets(axes[0], scene, three_d=True)
+    _workspace_limits(axes[0], three_d=True)
+    axes[0].set_title("workspace", fontsize="small")
+
+    def update(k):
+        for a in artists["dynamic"]:
+            a.remove()
+        artists["dynamic"] = []
+        p = pos[k]
+        trail = trail_idx[trail_idx <= k]
+        trail = np.append(trail, k)
+        for ax, line in zip(axes, lines):
+            line.set_data_3d(*pos[trail].T)
+            artists["dynamic"].append(_draw_sphere(ax, p, r_s, alpha=0.15))
+            artists["dynamic"].append(ax.scatter(*p, s=18, color="black", depthshade=False))
+        seen = [v for v in lidar.scan(p) if len(v)]
+        if seen:
+            pts = np.concatenate(seen)
+            for ax in axes:
+                artists["dynamic"].append(ax.scatter(*pts.T, s=14, color="orange",
+                                                     edgecolor="darkred", lw=0.4,
+                                                     depthshade=False))
+        ax = axes[1]
+        for i, set_lim in enumerate((ax.set_xlim, ax.set_ylim, ax.set_zlim)):
+            set_lim(p[i] - close_up, p[i] + close_up)
+        ax.set_box_aspect((1, 1, 1))
+        n_seen = sum(len(v) for v in seen)
+        k_log = min(k, len(result.t) - 1)
+        ax.set_title(f"t = {k * result.config.nmpc.ts:6.1f} s, {n_seen} points in view, "
+                     f"clearance {result.clearance[k_log]:.2f} m", fontsize="small")
+        return []
+
+    anim = FuncAnimation(fig, update, frames=steps, blit=False)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    anim.save(path, writer=PillowWriter(fps=fps), dpi=dpi)
+    plt.close(fig)
+    return path
+
+
+# --- saving ---------------------------------------------------------------------------------
+
+def save_figure(fig, stem: str, directory, formats=("pdf", "png"), dpi: int = 150,
+                close: bool = False) -> list[Path]:
+    """Write ``directory/stem.pdf`` and ``directory/stem.png``; returns the paths.
+
+    The PDF carries no creation date (``CreationDate: None``), so saving the same figure twice
+    gives the same bytes and regenerated figures only show up in git when they change.
+    """
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for fmt in formats:
+        path = out / f"{stem}.{fmt}"
+        if fmt == "pdf":
+            fig.savefig(path, format="pdf", metadata={"CreationDate": None}, bbox_inches="tight")
+        elif fmt == "png":
+            fig.savefig(path, format="png", dpi=dpi, bbox_inches="tight")
+        else:
+            raise ValueError(f"format must be 'pdf' or 'png', got {fmt!r}")
+        paths.append(path)
+    if close:
+        plt.close(fig)
+    return paths
+
+
+# --- helpers --------------------------------------------------------------------------------
+
+def scene_of(result):
+    """The Scene a result flew in, rebuilt from its config (scenario and seed).
+
+    Raises ``ValueError`` when the rebuilt scene's start or targets differ from the run's: the
+    scene was edited after the run, which then has to be flown again.
+    """
+    sim = result.config.simulation
+    scene = make_scene(sim.scenario, sim.seed)
+    same = (np.allclose(np.asarray(scene.targets, float), result.targets)
+            and np.allclose(np.asarray(scene.start, float), result.x[0, :3]))
+    if not same:
+        raise ValueError(f"scene {sim.scenario!r} has changed since this run was flown (start "
+                         "or targets differ); simulate it again")
+    return scene
+
+
+def slice_through(cloud, pad: float = 3.0):
+    """A horizontal slice through the middle of a cloud: (z, extent), m.
+
+    z is the mid-height of the cloud's bounding box; extent = (x_min, x_max, y_min, y_max) is
+    its horizontal bounding box widened by ``pad``.
+    """
+    cloud = np.asarray(cloud, float)
+    lo, hi = cloud.min(axis=0), cloud.max(axis=0)
+    extent = (lo[0] - pad, hi[0] + pad, lo[1] - pad, hi[1] + pad)
+    return float((lo[2] + hi[2]) / 2), tuple(float(v) for v in extent)
+
+
+def lidar_instants(result, scene, n: int = 4) -> list[int]:
+    """Steps at which to draw the LiDAR sphere: the closest approach to each region the UAV
+    comes within range of, then evenly spaced steps at least r_s apart, ``n`` at most."""
+    pos = result.x[:, :3]
+    r_s = result.config.simulation.lidar_range
+    chosen = []
+    for cloud in scene.clouds:
+        d = cKDTree(cloud).query(pos)[0]
+        k = int(np.argmin(d))
+        if d[k] <= r_s:
+            chosen.append(k)
+    # Fill up with evenly spaced instants, skipping any whose sphere would overlap another's
+    # centre (a short run gets a single sphere rather than a stack of them).
+    for k in np.linspace(0, len(pos) - 1, n).round().astype(int):
+        if len(chosen) >= n:
+            break
+        if all(np.linalg.norm(pos[k] - pos[c]) >= r_s for c in chosen):
+            chosen.append(int(k))
+    return sorted(chosen[:n])
+
+
+def stride_indices(n: int, max_points: int = MAX_POINTS) -> np.ndarray:
+    """Evenly spaced indices into a length-n sequence, at most ``max_points``, first and last
+    included (for smooth curves such as the trajectory)."""
+    if n <= max_points:
+        return np.arange(n)
+    return np.unique(np.linspace(0, n - 1, max(2, max_points)).round().astype(int))
+
+
+def envelope_indices(y, max_points: int = MAX_POINTS) -> np.ndarray:
+    """Indices keeping the min and the max of y in each of ``max_points``/2 buckets.
+
+    Unlike a stride, this keeps the envelope of a chattering signal: a 40 Hz oscillation
+    stays visible at full amplitude after decimation.
+    """
+    y = np.asarray(y, float).ravel()
+    n = len(y)
+    if n <= max_points:
+        return np.arange(n)
+    buckets = max(1, max_points // 2)
+    edges = np.linspace(0, n, buckets + 1).round().astype(int)
+    keep = [0, n - 1]
+    for a, b in zip(edges[:-1], edges[1:]):
+        if b > a:
+            seg = y[a:b]
+            keep += [a + int(np.argmin(seg)), a + int(np.argmax(seg))]
+    return np.unique(keep)
+
+
+def _axes(ax, figsize):
+    if ax is None:
+        fig, ax = plt.subplots(figsize=figsize, constrained_layout=True)
+        return fig, ax
+    return ax.figure, ax
+
+
+def _axes3d(ax):
+    if ax is None:
+        fig = plt.figure(figsize=(7.5, 6), constrained_layout=True)
+        ax = fig.add_subplot(projection="3d")
+        return fig, ax
+    return ax.figure, ax
+
+
+def _axes_column(axes, n, figsize):
+    if axes is None:
+        fig, axes = plt.subplots(n, 1, figsize=figsize, sharex=True, constrained_layout=True)
+        return fig, list(np.atleast_1d(axes))
+    axes = list(np.atleast_1d(axes))
+    if len(axes) != n:
+        raise ValueError(f"axes must hold {n} Axes, got {len(axes)}")
+    return axes[0].figure, axes
+
+
+def _axes_row(axes, n, figsize):
+    if axes is None:
+        fig, axes = plt.subplots(1, n, figsize=figsize, constrained_layout=True)
+        return fig, list(np.atleast_1d(axes))
+    axes = list(np.atleast_1d(axes))
+    if len(axes) != n:
+        raise ValueError(f"axes must hold {n} Axes, got {len(axes)}")
+    return axes[0].figure, axes
+
+
+def _draw_sphere(ax, center, radius, alpha: float = 0.12, label=None):
+    u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 24), np.linspace(0, np.pi, 13))
+    xs = center[0] + radius * np.cos(u) * np.sin(v)
+    ys = center[1] + radius * np.sin(u) * np.sin(v)
+    zs = center[2] + radius * np.cos(v)
+    return ax.plot_surface(xs, ys, zs, color=SPHERE_COLOR, alpha=alpha, linewidth=0,
+                           shade=False, label=label)
+
+
+def _mark_start_and_targets(ax, scene, three_d: bool):
+    start = np.asarray(scene.start, float)
+    targets = np.atleast_2d(np.asarray(scene.targets, float))
+    kw = {"depthshade": False} if three_d else {}
+    ax.scatter(*start, s=40, marker="o", color="tab:green", label="start", **kw)
+    ax.scatter(*targets.T, s=90, marker="*", color="tab:purple", label="targets", **kw)
+
+
+def _workspace_limits(ax, three_d: bool):
+    lo, hi = WORKSPACE_LOWER, WORKSPACE_UPPER
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_xlabel(AXIS_LABELS[0])
+    ax.set_ylabel(AXIS_LABELS[1])
+    if three_d:
+        ax.set_zlim(lo[2], hi[2])
+        ax.set_zlabel(AXIS_LABELS[2])
+        ax.set_box_aspect(tuple(hi - lo))
+
+
+def _mark_target_switches(ax, result, t):
+    """Dotted lines at the target switches that fall inside the drawn times ``t``."""
+    ts = result.config.nmpc.ts
+    for k in np.asarray(result.reached)[:-1]:
+        if k >= 0 and len(t) and t[0] <= k * ts <= t[-1]:
+            ax.axvline(k * ts, ls=":", color="gray", lw=1.0)
+
+
+def _steps_in(result, t_range) -> np.ndarray:
+    """Indices of the steps with t in ``t_range`` (all steps when None)."""
+    t = np.asarray(result.t, float)
+    if t_range is None:
+        return np.arange(len(t))
+    t0, t1 = t_range
+    k = np.flatnonzero((t >= t0) & (t <= t1))
+    if len(k) == 0:
+        raise ValueError(f"t_range {t_range!r} holds no step of the run ({t[0]:g}-{t[-1]:g} s)")
+    return k
+
+
+def _slice_points(ax, cloud, z: float, slab: float = 0.5):
+    """Cloud points within ``slab`` (m) of the plane, drawn as red dots."""
+    cloud = np.asarray(cloud)
+    near = np.abs(cloud[:, 2] - z) <= slab
+    ax.scatter(cloud[near, 0], cloud[near, 1], s=6, color=CLOUD_COLOR, zorder=3, lw=0)
+
+
+def _slice_axes(ax, extent):
+    ax.set_xlim(extent[0], extent[1])
+    ax.set_ylim(extent[2], extent[3])
+    ax.set_aspect("equal")
+    ax.set_xlabel(AXIS_LABELS[0])
+    ax.set_ylabel(AXIS_LABELS[1])

@@ -1,0 +1,478 @@
+"""One command regenerates every figure and the summary: ``python -m paper_repro reproduce``.
+
+Two stages, each printed with its duration:
+
+1. **simulate** — the paper mission (``paper`` scene) once per metric, smoothed and Euclidean.
+   A result is cached in ``results/<run>-<hash>/`` where the hash is the SHA-256 of the run's
+   full configuration (``Config.to_dict()``), its step limit and the scene's geometry, so a
+   second call only redraws;
+   a changed parameter (the solver choice included) gives a new folder. The hash covers the
+   configuration, not the code: after a change to the model or a solver, pass ``--force``.
+   :func:`run_simulation` is the single place that flies a mission.
+2. **notebooks** — every notebook in ``notebooks/`` is executed with papermill, its parameters
+   checked against the ones the notebook declares (a wrong name raises ``ValueError``), into
+   the git-ignored ``notebooks/executed/``. The notebooks write ``figures/*.pdf``, ``*.png``,
+   ``flight.gif`` and ``summary.csv``.
+
+``--quick`` flies a short mission (:data:`QUICK_STEPS` steps per metric) and writes into the
+git-ignored ``figures/quick/``, so a quick look never overwrites the committed figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import hashlib
+import json
+import shutil
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import paths
+from .config import Config
+
+DESCRIPTION = """\
+Regenerate every figure of the paper and the summary table.
+
+1. simulate: the paper mission once per metric (smoothed, Euclidean), cached in
+   results/<run>-<config hash>/, so a second call only redraws;
+2. notebooks: every notebook of notebooks/ executed with papermill (parameters checked)
+   into notebooks/executed/; they write figures/*.pdf, *.png, flight.gif and summary.csv.
+
+--quick flies a short mission and writes into figures/quick/ (git-ignored)."""
+
+METRICS = ("smooth", "euclidean")
+"""The two runs of Section V: the smoothed distance (Figs. 1-5) and the Euclidean baseline
+(Figs. 6-8)."""
+
+QUICK_STEPS = 300
+"""Steps per metric of a ``--quick`` run (3 s of flight; about a minute of IPOPT per metric)."""
+
+HASH_LENGTH = 12
+"""Hex digits of the config hash kept in a cache folder's name."""
+
+_QUIET_KERNEL = "--IPKernelApp.log_level=CRITICAL"
+"""The kernel's own log (a transport warning at every start) is noise here: errors in a cell
+reach us as papermill exceptions, a dead kernel as ``DeadKernelError``."""
+"""Hex digits of the config hash kept in a cache folder's name."""
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One cached closed-loop run: ``config`` flown for at most ``max_steps`` steps.
+
+    ``name`` is a readable prefix of the cache folder (``paper-smooth``); only the hash of
+    ``config`` and ``max_steps`` decides whether a cached result is reused.
+    """
+
+    name: str
+    config: Config
+    max_steps: int
+
+    @property
+    def key(self) -> str:
+        """SHA-256 of the JSON of the full configuration plus ``max_steps`` (hex)."""
+        return config_hash(self.config, self.max_steps)
+
+    def directory(self, results_dir=None) -> Path:
+        """Cache folder ``results/<name>-<hash>``."""
+        base = Path(results_dir) if results_dir is not None else paths.results_dir()
+        return base / f"{self.name}-{self.key[:HASH_LENGTH]}"
+
+
+@dataclass(frozen=True)
+class NotebookSpec:
+    """A notebook of ``notebooks/`` and what :func:`reproduce` passes to it.
+
+    Attributes
+    ----------
+    name : file stem (``01_flight_3d`` for ``notebooks/01_flight_3d.ipynb``).
+    title : what it reproduces.
+    runs : the metrics whose result folders it reads, passed as ``<metric>_dir``.
+    outputs : files it writes into ``figures_dir``.
+    quick : extra parameters of a quick run (e.g. fewer animation frames).
+    """
+
+    name: str
+    title: str
+    runs: tuple[str, ...] = ()
+    outputs: tuple[str, ...] = ()
+    quick: dict = field(default_factory=dict)
+
+
+def _figure(*stems: str) -> tuple[str, ...]:
+    return tuple(f"{s}.{ext}" for s in stems for ext in ("pdf", "png"))
+
+
+NOTEBOOKS = (
+    NotebookSpec("01_flight_3d", "Fig. 1, 3-D flight", ("smooth",), _figure("fig01_flight_3d")),
+    NotebookSpec("02_projections", "Figs. 2 and 3, XZ and XY projections", ("smooth",),
+                 _figure("fig02_projection_xz", "fig03_projection_xy")),
+    NotebookSpec("03_thrusts", "Fig. 4, thrusts", ("smooth",),
+                 _figure("fig04_thrusts", "fig04_thrusts_zoom")),
+    NotebookSpec("04_tracking_errors", "Fig. 5, tracking errors", ("smooth",),
+                 _figure("fig05_tracking_errors")),
+    NotebookSpec("05_euclidean", "Figs. 6-8, Euclidean run", ("euclidean",),
+                 _figure("fig06_euclidean_states", "fig07_euclidean_tracking_errors",
+                         "fig08_euclidean_thrusts", "fig08_euclidean_thrusts_zoom")),
+    NotebookSpec("06_summary", "summary table (solve times, chattering)", METRICS,
+                 ("summary.csv", *_figure("summary_solve_times", "summary_input_spectrum"))),
+    NotebookSpec("07_distance_tutorial", "tutorial, the smoothed distance", (),
+                 _figure("tutorial_distance_slice", "tutorial_eta_sigma",
+                         "tutorial_gradient_field", "tutorial_half_squared_limit"),
+                 quick={"grid_points": 60}),
+    NotebookSpec("08_animation", "animation of the flight", ("smooth",), ("flight.gif",),
+                 quick={"frames": 20}),
+)
+"""Every notebook, in the order :func:`reproduce` executes them."""
+
+
+# --- runs -----------------------------------------------------------------------------------
+
+def config_hash(config: Config, max_steps: int) -> str:
+    """SHA-256 (hex) of the run: ``config.to_dict()``, ``max_steps`` and the scene's geometry.
+
+    The scene is rebuilt from its name and seed wherever a result is used, so its geometry
+    (:func:`scene_fingerprint`) is part of the key: editing a scene re-simulates instead of
+    drawing an old flight among new clouds.
+    """
+    payload = {"config": config.to_dict(), "max_steps": int(max_steps),
+               "scene": scene_fingerprint(config)}
+    text = json.dumps(payload, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def scene_fingerprint(config: Config) -> str:
+    """SHA-256 (hex) of the start, the targets and every cloud point of the run's scene."""
+    from .scene import make_scene
+
+    sim = config.simulation
+    scene = make_scene(sim.scenario, sim.seed)
+    digest = hashlib.sha256()
+    for block in (scene.start, scene.targets, *scene.clouds):
+        digest.update(np.ascontiguousarray(block, dtype=np.float64).tobytes())
+    return digest.hexdigest()
+
+
+def run_specs(quick: bool = False, max_steps: int | None = None,
+              config: Config | None = None) -> list[RunSpec]:
+    """The paper mission once per metric (:data:`METRICS`).
+
+    Parameters
+    ----------
+    quick : fly :data:`QUICK_STEPS` steps instead of the config's ``max_steps``.
+    max_steps : explicit step limit (overrides ``quick``).
+    config : base configuration (default :class:`Config`); its metric and scenario are set
+        here (``paper``), everything else is kept.
+    """
+    base = config or Config()
+    steps = max_steps if max_steps is not None else (
+        QUICK_STEPS if quick else base.simulation.max_steps)
+    if not (isinstance(steps, int) and steps >= 1):
+        raise ValueError(f"max_steps must be an integer >= 1, got {steps!r}")
+    specs = []
+    for metric in METRICS:
+        cfg = dataclasses.replace(
+            base,
+            distance=dataclasses.replace(base.distance, metric=metric),
+            simulation=dataclasses.replace(base.simulation, scenario="paper", max_steps=steps),
+        )
+        specs.append(RunSpec(f"paper-{metric}", cfg, steps))
+    return specs
+
+
+def run_simulation(spec: RunSpec, progress: bool | None = None):
+    """Fly one run: the single call of :func:`~paper_repro.simulation.simulate`.
+
+    Extend here (e.g. a solver choice carried by the config) and every cached run follows.
+    """
+    from .simulation import simulate
+
+    return simulate(spec.config, max_steps=spec.max_steps, progress=progress)
+
+
+def ensure_result(spec: RunSpec, results_dir=None, force: bool = False,
+                  progress: bool | None = None) -> tuple[Path, bool]:
+    """The cache folder of ``spec``, simulating first if it is missing (or ``force``).
+
+    Returns (folder, simulated). The result is written to ``<folder>.partial`` and renamed
+    when complete, so an interrupted run never leaves a folder that looks cached.
+    """
+    out = spec.directory(results_dir)
+    if is_cached(out) and not force:
+        return out, False
+    result = run_simulation(spec, progress=progress)
+    partial = out.with_name(out.name + ".partial")
+    if partial.exists():
+        shutil.rmtree(partial)
+    result.save(partial)
+    if out.exists():
+        shutil.rmtree(out)
+    partial.rename(out)
+    return out, True
+
+
+def is_cached(directory) -> bool:
+    """A complete saved result lives in ``directory``."""
+    d = Path(directory)
+    return (d / "result.npz").is_file() and (d / "config.json").is_file()
+
+
+def default_result_dir(metric: str) -> Path:
+    """Cache folder of the full paper mission for ``metric`` (what the notebooks read when run
+    by hand without parameters)."""
+    if metric not in METRICS:
+        raise ValueError(f"metric must be one of {METRICS}, got {metric!r}")
+    return {s.config.distance.metric: s for s in run_specs()}[metric].directory()
+
+
+# --- notebooks ------------------------------------------------------------------------------
+
+def notebook_path(name: str) -> Path:
+    """``notebooks/<name>.ipynb``."""
+    return paths.notebooks_dir() / f"{name}.ipynb"
+
+
+def notebook_parameters(spec: NotebookSpec, result_dirs: dict, figures_dir,
+                        quick: bool = False, overrides: dict | None = None) -> dict:
+    """Parameters :func:`reproduce` passes to a notebook.
+
+    ``result_dirs`` maps a metric to its result folder; every notebook gets ``figures_dir``,
+    those that read runs get ``<metric>_dir``; quick runs add ``spec.quick``; ``overrides``
+    come last.
+    """
+    params = {f"{m}_dir": str(result_dirs[m]) for m in spec.runs}
+    params["figures_dir"] = str(figures_dir)
+    if quick:
+        params.update(spec.quick)
+    params.update(overrides or {})
+    return params
+
+
+def declared_parameters(notebook) -> dict:
+    """Names and defaults of the ``parameters``-tagged cell (papermill's inspection).
+
+    Raises ``ValueError`` when the notebook has no such cell.
+    """
+    import papermill
+
+    notebook = Path(notebook)
+    declared = papermill.inspect_notebook(str(notebook))
+    if not declared and not _has_parameters_cell(notebook):
+        raise ValueError(f"{notebook.name} has no cell tagged 'parameters'")
+    return declared
+
+
+def check_parameters(notebook, parameters: dict) -> None:
+    """Raise ``ValueError`` naming every parameter the notebook does not declare.
+
+    Papermill itself only logs a warning and injects the value anyway, where it would be
+    silently ignored.
+    """
+    declared = declared_parameters(notebook)
+    unknown = sorted(set(parameters) - set(declared))
+    if unknown:
+        raise ValueError(f"{Path(notebook).name}: unknown parameter(s) {unknown}; it declares "
+                         f"{sorted(declared)}")
+
+
+def execute_notebook(notebook, output, parameters: dict | None = None) -> Path:
+    """Check the parameters, then execute ``notebook`` with papermill into ``output``.
+
+    The kernel runs in ``notebooks/``; the notebooks find everything through
+    :mod:`paper_repro.paths` or their parameters, so the working directory does not matter.
+    """
+    import papermill
+
+    parameters = dict(parameters or {})
+    check_parameters(notebook, parameters)
+    output = Path(output)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    papermill.execute_notebook(str(notebook), str(output), parameters=parameters,
+                               progress_bar=False, log_output=False,
+                               cwd=str(Path(notebook).parent),
+                               extra_arguments=[_QUIET_KERNEL])
+    return output
+
+
+# --- the command ----------------------------------------------------------------------------
+
+@dataclass
+class ReproduceReport:
+    """What :func:`reproduce` did: result folders, executed notebooks, files written, timings."""
+
+    result_dirs: dict
+    simulated: list
+    executed: list
+    figures_dir: Path
+    outputs: list
+    timings: dict
+    total_seconds: float
+
+    @property
+    def summary_csv(self) -> Path:
+        return self.figures_dir / "summary.csv"
+
+
+def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = False,
+              notebooks=None, config: Config | None = None, figures_dir=None,
+              results_dir=None, executed_dir=None, overrides: dict | None = None,
+              progress: bool | None = None, log=print) -> ReproduceReport:
+    """Simulate what is missing, execute the notebooks, write the figures and the summary.
+
+    Parameters
+    ----------
+    quick : short mission (:data:`QUICK_STEPS`) into ``figures/quick``.
+    max_steps : explicit step limit per run (default: the config's, i.e. the whole mission).
+    force : re-simulate even when a cached result exists.
+    notebooks : names of the notebooks to execute (default: all of :data:`NOTEBOOKS`).
+    config : base configuration of the runs (default :class:`Config`).
+    figures_dir, results_dir, executed_dir : override the folders of :mod:`paper_repro.paths`.
+    overrides : extra notebook parameters, passed to every notebook that declares them.
+    progress : closed-loop progress bar (default: when writing to a terminal).
+    log : called with one line per stage.
+    """
+    start = time.perf_counter()
+    specs = run_specs(quick=quick, max_steps=max_steps, config=config)
+    selected = _select_notebooks(notebooks)
+    needed = {m for nb in selected for m in nb.runs}
+    figures = Path(figures_dir) if figures_dir is not None else paths.figures_dir(quick)
+    executed = Path(executed_dir) if executed_dir is not None else paths.executed_dir(quick)
+    todo = [s for s in specs if s.config.distance.metric in needed]
+    total = len(todo) + len(selected)
+    log(f"reproduce: paper mission, {len(todo)} run(s) of at most {specs[0].max_steps} steps, "
+        f"{len(selected)} notebook(s) -> {_show(figures)}")
+
+    result_dirs, simulated, timings = {}, [], {}
+    for i, spec in enumerate(todo, 1):
+        out = spec.directory(results_dir)
+        step = f"[{i}/{total}] simulate {spec.name}"
+        if is_cached(out) and not force:
+            log(f"{step}: cached in {_show(out)}")
+            result_dirs[spec.config.distance.metric] = out
+            continue
+        log(f"{step}: flying up to {spec.max_steps} steps ...")
+        t0 = time.perf_counter()
+        out, _ = ensure_result(spec, results_dir, force=True, progress=progress)
+        timings[spec.name] = time.perf_counter() - t0
+        simulated.append(spec.name)
+        result_dirs[spec.config.distance.metric] = out
+        log(f"{step}: done in {_duration(timings[spec.name])} -> {_show(out)}")
+
+    outputs, ran = [], []
+    for i, nb in enumerate(selected, len(todo) + 1):
+        params = notebook_parameters(nb, result_dirs, figures, quick=quick)
+        if overrides:
+            declared = declared_parameters(notebook_path(nb.name))
+            params.update({k: v for k, v in overrides.items() if k in declared})
+        step = f"[{i}/{total}] notebook {nb.name} ({nb.title})"
+        log(f"{step} ...")
+        t0 = time.perf_counter()
+        execute_notebook(notebook_path(nb.name), executed / f"{nb.name}.ipynb", params)
+        timings[nb.name] = time.perf_counter() - t0
+        missing = [f for f in nb.outputs if not (figures / f).is_file()]
+        if missing:
+            raise RuntimeError(f"notebook {nb.name} did not write {missing} into {figures}")
+        outputs += [figures / f for f in nb.outputs]
+        ran.append(nb.name)
+        log(f"{step}: done in {_duration(timings[nb.name])}")
+
+    for metric, directory in result_dirs.items():
+        with np.load(Path(directory) / "result.npz") as z:
+            reached, steps = z["reached"], len(z["t"])
+        if np.any(reached < 0):
+            log(f"note: the {metric} run stopped after {steps} steps with "
+                f"{int(np.sum(reached >= 0))}/{len(reached)} targets reached; its figures "
+                "show the partial mission")
+
+    elapsed = time.perf_counter() - start
+    log(f"done in {_duration(elapsed)}: {len(outputs)} file(s) in {_show(figures)}, executed "
+        f"notebooks in {_show(executed)}")
+    return ReproduceReport(result_dirs, simulated, ran, figures, outputs, timings, elapsed)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``python -m paper_repro reproduce``."""
+    parser.add_argument("--quick", action="store_true",
+                        help=f"short mission ({QUICK_STEPS} steps per metric) into "
+                             "figures/quick/ for a fast look")
+    parser.add_argument("--max-steps", type=_positive_int, default=None,
+                        help="step limit per run (default: the whole mission, or "
+                             f"{QUICK_STEPS} with --quick)")
+    parser.add_argument("--force", action="store_true",
+                        help="re-simulate even when a cached result exists (the cache is keyed "
+                             "by the configuration, not by the code)")
+    parser.add_argument("--solver", choices=("rti", "reference"), default=None,
+                        help="NMPC solver of the runs (default: the config's, "
+                             f"{Config().nmpc.solver!r}; 'reference' is IPOPT as in the paper, "
+                             "about 20x slower)")
+    parser.add_argument("--notebooks", nargs="+", metavar="NAME", default=None,
+                        choices=[nb.name for nb in NOTEBOOKS],
+                        help="execute only these notebooks (default: all)")
+    parser.add_argument("--figures-dir", default=None,
+                        help="where figures and summary.csv go (default: figures/, or "
+                             "figures/quick/ with --quick)")
+    parser.add_argument("--no-progress", action="store_true",
+                        help="hide the closed-loop progress bar")
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run :func:`reproduce` from parsed command-line arguments."""
+    config = Config()
+    if args.solver is not None:
+        config = dataclasses.replace(
+            config, nmpc=dataclasses.replace(config.nmpc, solver=args.solver))
+    reproduce(quick=args.quick, max_steps=args.max_steps, force=args.force,
+              notebooks=args.notebooks, config=config, figures_dir=args.figures_dir,
+              progress=False if args.no_progress else None,
+              log=lambda line: print(line, flush=True))
+    return 0
+
+
+# --- helpers --------------------------------------------------------------------------------
+
+def _select_notebooks(names) -> list[NotebookSpec]:
+    if names is None:
+        return list(NOTEBOOKS)
+    by_name = {nb.name: nb for nb in NOTEBOOKS}
+    unknown = sorted(set(names) - set(by_name))
+    if unknown:
+        raise ValueError(f"unknown notebook(s) {unknown}; available: {sorted(by_name)}")
+    return [nb for nb in NOTEBOOKS if nb.name in set(names)]
+
+
+def _has_parameters_cell(notebook: Path) -> bool:
+    data = json.loads(Path(notebook).read_text())
+    return any("parameters" in c.get("metadata", {}).get("tags", []) for c in data["cells"])
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 60:
+        return f"{seconds:.1f} s"
+    minutes, sec = divmod(round(seconds), 60)
+    if minutes < 60:
+        return f"{minutes} min {sec:02d} s"
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours} h {minutes:02d} min"
+
+
+def _show(path) -> str:
+    """A path relative to the repository when it lies inside it."""
+    p = Path(path).resolve()
+    try:
+        return str(p.relative_to(paths.repo_root()))
+    except ValueError:
+        return str(p)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {value}")
+    return value

@@ -1,0 +1,173 @@
+"""Chattering and summary metrics: properties a reader can check by hand."""
+
+import numpy as np
+import pytest
+
+from paper_repro import Config
+from paper_repro.metrics import (
+    chattering_metrics,
+    input_spectrum,
+    sign_changes,
+    summary_row,
+    summary_table,
+    tracking_error,
+)
+from paper_repro.simulation import SimulationResult
+
+TS = 0.01
+T = np.arange(0.0, 20.0, TS)
+
+
+def _sine(freq=0.5, amplitude=1.0, offset=5.0):
+    return offset + amplitude * np.sin(2 * np.pi * freq * T)
+
+
+def _square(freq=40.0, amplitude=0.1):
+    return amplitude * np.sign(np.sin(2 * np.pi * freq * T + 0.1))
+
+
+def test_smooth_sine_has_few_sign_changes_and_no_high_frequency_energy():
+    m = chattering_metrics(_sine(), TS)
+    # 0.5 Hz for 20 s: 10 periods, two direction reversals per period.
+    assert m["du_sign_changes"] == 20
+    assert m["hf_energy_fraction"] < 1e-5
+    assert m["hf_rms"] < 2e-3
+    # TV of a sine: 4·amplitude per period.
+    assert m["total_variation"] == pytest.approx(40.0, rel=1e-3)
+    assert m["max_abs_du"] == pytest.approx(2 * np.pi * 0.5 * TS, rel=1e-3)
+
+
+def test_adding_a_40_hz_square_wave_raises_every_chattering_measure():
+    smooth = chattering_metrics(_sine(), TS)
+    chatter = chattering_metrics(_sine() + _square(), TS)
+    # A 40 Hz square wave flips direction 80 times a second.
+    assert chatter["du_sign_changes"] > 70 * 20
+    assert chatter["hf_energy_fraction"] > 100 * smooth["hf_energy_fraction"]
+    # Its RMS is its amplitude, 0.1, and nearly all of it lies above 5 Hz.
+    assert chatter["hf_rms"] == pytest.approx(0.1, rel=0.05)
+    # Each of the 1,600 edges is a jump of 2·0.1 (the slow sine moves far less in a step).
+    assert chatter["total_variation"] > 0.95 * 1600 * 0.2 > 5 * smooth["total_variation"]
+    assert chatter["max_abs_du"] >= 0.2
+
+
+def test_total_variation_of_a_monotone_ramp_is_its_range():
+    ramp = np.linspace(2.0, 7.0, 500)
+    m = chattering_metrics(ramp, TS)
+    assert m["total_variation"] == pytest.approx(5.0)
+    assert m["du_sign_changes"] == 0
+    # A trend is not chattering: the end line is removed before the FFT.
+    assert m["hf_energy_fraction"] == 0.0
+    assert m["hf_rms"] < 1e-12
+
+
+def test_constant_and_single_sample_signals_have_zero_chattering():
+    for u in (np.full(300, 5.49), np.array([5.49])):
+        m = chattering_metrics(u, TS)
+        assert m["total_variation"] == 0 and m["max_abs_du"] == 0
+        assert m["hf_energy_fraction"] == 0 and m["du_sign_changes"] == 0
+
+
+def test_channels_add_up():
+    u = np.column_stack([_sine(), _sine() + _square(), np.linspace(0, 1, len(T))])
+    total = chattering_metrics(u, TS)
+    parts = [chattering_metrics(u[:, i], TS) for i in range(3)]
+    assert total["total_variation"] == pytest.approx(sum(p["total_variation"] for p in parts))
+    assert total["du_sign_changes"] == sum(p["du_sign_changes"] for p in parts)
+    assert total["max_abs_du"] == max(p["max_abs_du"] for p in parts)
+
+
+def test_high_frequency_power_is_the_power_above_the_cutoff():
+    low = np.sin(2 * np.pi * 1.0 * T)
+    high = 0.3 * np.sin(2 * np.pi * 20.0 * T)
+    m = chattering_metrics(low + high, TS, cutoff_hz=5.0)
+    assert m["hf_rms"] == pytest.approx(0.3 / np.sqrt(2), rel=0.02)
+    assert m["hf_energy_fraction"] == pytest.approx(0.09 / 1.09, rel=0.02)
+
+
+def test_spectrum_integrates_to_the_power_of_the_signal():
+    u = np.column_stack([_sine(), 0.5 * _sine(freq=7.0)])
+    freqs, psd = input_spectrum(u, TS)
+    power = np.sum(psd[1:]) * (freqs[1] - freqs[0])
+    assert power == pytest.approx(0.5 + 0.125, rel=0.02)
+
+
+def test_cutoff_sets_the_boundary_of_high_frequency_energy():
+    u = _sine(freq=3.0)
+    assert chattering_metrics(u, TS, cutoff_hz=5.0)["hf_energy_fraction"] < 1e-6
+    assert chattering_metrics(u, TS, cutoff_hz=2.0)["hf_energy_fraction"] > 0.99
+
+
+def test_sign_changes_ignore_the_dead_band():
+    noise = 1e-6 * np.random.default_rng(0).standard_normal(1000)
+    assert sign_changes(np.diff(5.49 + noise)) == 0
+    assert sign_changes(np.diff(5.49 + noise), deadband=0.0) > 100
+    # A pause between two increases is not a reversal.
+    assert sign_changes([0.1, 0.0, 0.0, 0.1, -0.1]) == 1
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"ts": 0.0}, "ts"),
+    ({"ts": TS, "cutoff_hz": 50.0}, "Nyquist"),
+    ({"ts": TS, "cutoff_hz": -1.0}, "cutoff_hz"),
+    ({"ts": TS, "deadband": -1.0}, "deadband"),
+])
+def test_invalid_arguments_raise(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        chattering_metrics(_sine(), **kwargs)
+
+
+def test_invalid_signal_raises():
+    with pytest.raises(ValueError, match="u must"):
+        chattering_metrics(np.zeros((0, 4)), TS)
+    with pytest.raises(ValueError, match="finite"):
+        chattering_metrics([1.0, np.nan], TS)
+
+
+def _result(steps=400, reached=(150, -1), metric="smooth"):
+    """A hand-made run: two targets, the first reached at step 150."""
+    cfg = Config()
+    targets = np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])
+    k = np.arange(steps)
+    index = np.where(k < 150, 0, 1)
+    x = np.zeros((steps + 1, 12))
+    x[:, 0] = np.linspace(0.0, 2.0, steps + 1)
+    u = 5.49 + 0.1 * np.sin(2 * np.pi * 0.5 * k * 0.01)[:, None] * np.ones(4)
+    return SimulationResult(
+        t=k * 0.01, x=x, u=u, x_a=x[:-1], u_a=np.full((steps, 4), 5.49),
+        solve_time=np.linspace(0.01, 0.1, steps), iterations=np.full(steps, 7),
+        success=np.arange(steps) % 100 != 0, status=np.full(steps, "Solve_Succeeded"),
+        clearance=np.linspace(5.0, 1.5, steps), target_index=index,
+        visible_points=np.zeros(steps, int), targets=targets, reached=np.array(reached),
+        config=cfg, meta={"wall_time_s": 12.0})
+
+
+def test_tracking_error_uses_the_active_target():
+    r = _result()
+    e = tracking_error(r)
+    assert e.shape == (400, 3)
+    assert np.allclose(e[10], r.x[10, :3] - r.targets[0])
+    assert np.allclose(e[200], r.x[200, :3] - r.targets[1])
+
+
+def test_summary_row_reports_solve_times_failures_clearance_and_mission_time():
+    row = summary_row(_result())
+    assert row["run"] == "paper/smooth"
+    assert row["steps"] == 400 and row["failed_solves"] == 4
+    assert row["solve_max_ms"] == pytest.approx(100.0)
+    assert row["solve_median_ms"] == pytest.approx(55.0)
+    assert row["min_clearance_m"] == pytest.approx(1.5)
+    assert row["targets_reached"] == "1/2" and not row["completed"]
+    assert np.isnan(row["mission_time_s"]) and row["simulated_time_s"] == pytest.approx(4.0)
+    done = summary_row(_result(reached=(150, 390)))
+    assert done["completed"] and done["mission_time_s"] == pytest.approx(3.9)
+
+
+def test_summary_table_has_one_row_per_run():
+    table = summary_table([_result(), _result()])
+    assert len(table) == 2 and table.index.name == "run"
+    for col in ("solve_mean_ms", "solve_median_ms", "solve_p95_ms", "solve_max_ms",
+                "iterations_mean", "failed_solves", "tv_u_N", "max_abs_du_N",
+                "hf_energy_fraction", "du_sign_changes", "min_clearance_m", "mission_time_s"):
+        assert col in table.columns
+    with pytest.raises(ValueError):
+        summary_table([])

@@ -1,0 +1,99 @@
+"""The notebooks: stored without outputs, parameterised, and executable through papermill.
+
+Every notebook runs here with a quick parameter set on a tiny closed-loop run of the paper
+mission (150 steps per metric, one LiDAR slot of 64 points), so the notebooks cannot rot.
+"""
+
+import json
+
+import nbformat
+import pandas as pd
+import pytest
+
+from paper_repro import Config, NMPCParams
+from paper_repro import reproduce as R
+from paper_repro.paths import notebooks_dir
+
+NOTEBOOK_FILES = sorted(notebooks_dir().glob("*.ipynb"))
+SPECS = {nb.name: nb for nb in R.NOTEBOOKS}
+TINY = Config(nmpc=NMPCParams(region_slots=1, points_per_region=64))
+TINY_STEPS = 150
+# On top of each notebook's own quick parameters: fewer frames, a coarser tutorial grid.
+CI_OVERRIDES = {"08_animation": {"frames": 4}, "07_distance_tutorial": {"grid_points": 40}}
+
+
+@pytest.fixture(scope="session")
+def tiny_results(tmp_path_factory):
+    """Result folders of both metrics, simulated once per session through the cache."""
+    cache = tmp_path_factory.getbasetemp() / "tiny-results"
+    return {spec.config.distance.metric: R.ensure_result(spec, cache, progress=False)[0]
+            for spec in R.run_specs(max_steps=TINY_STEPS, config=TINY)}
+
+
+def test_every_notebook_is_registered_and_every_registered_one_exists():
+    assert NOTEBOOK_FILES, "no notebook found"
+    assert {p.stem for p in NOTEBOOK_FILES} == set(SPECS)
+
+
+@pytest.mark.parametrize("path", NOTEBOOK_FILES, ids=lambda p: p.stem)
+def test_source_is_valid_and_carries_no_outputs(path):
+    nb = nbformat.read(path, as_version=4)
+    nbformat.validate(nb)
+    assert nb.metadata["kernelspec"]["name"] == "python3"
+    for cell in nb.cells:
+        if cell.cell_type == "code":
+            assert cell.outputs == [], f"{path.name}: a code cell has outputs"
+            assert cell.execution_count is None, f"{path.name}: a code cell has a count"
+            assert "sys.path" not in cell.source
+    assert nb.cells[0].cell_type == "markdown" and nb.cells[0].source.startswith("# ")
+
+
+@pytest.mark.parametrize("path", NOTEBOOK_FILES, ids=lambda p: p.stem)
+def test_exactly_one_parameters_cell_and_reproduce_passes_only_declared_names(path):
+    nb = nbformat.read(path, as_version=4)
+    tagged = [c for c in nb.cells if "parameters" in c.metadata.get("tags", [])]
+    assert len(tagged) == 1 and tagged[0].cell_type == "code"
+    declared = R.declared_parameters(path)
+    assert "figures_dir" in declared
+    spec = SPECS[path.stem]
+    dirs = {m: f"/results/{m}" for m in R.METRICS}
+    for quick in (False, True):
+        R.check_parameters(path, R.notebook_parameters(spec, dirs, "/figures", quick=quick))
+
+
+@pytest.mark.parametrize("name", [nb.name for nb in R.NOTEBOOKS])
+def test_notebook_executes_with_quick_parameters(name, tiny_results, tmp_path):
+    spec = SPECS[name]
+    figures = tmp_path / "figures"
+    params = R.notebook_parameters(spec, tiny_results, figures, quick=True,
+                                   overrides=CI_OVERRIDES.get(name))
+    out = R.execute_notebook(R.notebook_path(name), tmp_path / f"{name}.ipynb", params)
+
+    executed = nbformat.read(out, as_version=4)
+    code = [c for c in executed.cells if c.cell_type == "code"]
+    assert all(c.execution_count is not None for c in code)
+    assert not any(o.get("output_type") == "error" for c in code for o in c.outputs)
+    assert executed.metadata["papermill"]["parameters"] == json.loads(json.dumps(params))
+    for f in spec.outputs:
+        assert (figures / f).is_file() and (figures / f).stat().st_size > 0, f
+    if name == "06_summary":
+        table = pd.read_csv(figures / "summary.csv", index_col="run")
+        assert list(table.index) == ["paper/smooth", "paper/euclidean"]
+        assert (table["steps"] == TINY_STEPS).all()
+        assert (table["failed_solves"] >= 0).all() and (table["solve_median_ms"] > 0).all()
+
+
+def test_unknown_parameter_raises_before_execution(tmp_path):
+    out = tmp_path / "never.ipynb"
+    with pytest.raises(ValueError, match="smooth_dri") as info:
+        R.execute_notebook(R.notebook_path("03_thrusts"), out,
+                           {"smooth_dri": "/x", "figures_dir": str(tmp_path)})
+    assert "smooth_dir" in str(info.value)  # the message lists what the notebook declares
+    assert not out.exists()
+
+
+def test_notebook_without_parameters_cell_is_rejected(tmp_path):
+    path = tmp_path / "untagged.ipynb"
+    nbformat.write(nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("a = 1")]), path)
+    with pytest.raises(ValueError, match="parameters"):
+        R.check_parameters(path, {"a": 2})

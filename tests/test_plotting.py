@@ -1,0 +1,196 @@
+"""Figure functions: decimation keeps the shape, PDFs are byte-stable, data drawn is right."""
+
+import dataclasses
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from paper_repro import Config, make_scene  # noqa: E402
+from paper_repro import plotting as P  # noqa: E402
+from paper_repro.simulation import SimulationResult  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return make_scene("paper")
+
+
+@pytest.fixture(scope="module")
+def result():
+    """A hand-made flight of the paper scene: from the start past the tower (1 m from its
+    face at t = 30 s) to the first target, which is reached at step 4,000 of 6,000."""
+    steps = 6000
+    k = np.arange(steps + 1)
+    waypoints = np.array([[22.0, -22.0, 0.0], [16.0, -12.5, 3.0], [-12.0, 18.0, 11.0],
+                          [-15.0, 18.0, 5.0]])
+    s = np.interp(k, [0, 3000, 4000, steps], [0, 1, 2, 3])
+    x = np.zeros((steps + 1, 12))
+    for i in range(3):
+        x[:, i] = np.interp(s, np.arange(4), waypoints[:, i])
+    u = 5.49 + 0.2 * np.sin(2 * np.pi * 0.2 * k[:-1] * 0.01)[:, None] * np.ones(4)
+    u[3000:3100, 0] += 0.3 * (-1.0) ** np.arange(100)       # a burst of chattering
+    targets = np.array([[-12.0, 18.0, 11.0], [-21.0, 18.0, 0.0]])
+    index = (k[:-1] >= 4000).astype(int)
+    return SimulationResult(
+        t=k[:-1] * 0.01, x=x, u=u, x_a=x[:-1], u_a=np.full((steps, 4), 5.49),
+        solve_time=np.full(steps, 0.08), iterations=np.full(steps, 9),
+        success=np.ones(steps, bool), status=np.full(steps, "Solve_Succeeded"),
+        clearance=1.0 + np.abs(k[:-1] - 3000) / 1000, target_index=index,
+        visible_points=np.zeros(steps, int), targets=targets, reached=np.array([4000, -1]),
+        config=Config())
+
+
+def test_save_figure_is_byte_stable(tmp_path, result, scene):
+    fig = P.plot_projection(result, scene, plane="xz")
+    first = P.save_figure(fig, "a", tmp_path)
+    second = P.save_figure(fig, "b", tmp_path)
+    plt.close(fig)
+    for p, q in zip(first, second):
+        assert p.read_bytes() == q.read_bytes(), p.suffix
+    pdf = first[0].read_bytes()
+    assert pdf.startswith(b"%PDF") and b"CreationDate" not in pdf
+    assert first[1].read_bytes().startswith(b"\x89PNG")
+
+
+def test_save_figure_rejects_unknown_formats(tmp_path):
+    fig = plt.figure()
+    with pytest.raises(ValueError, match="format"):
+        P.save_figure(fig, "x", tmp_path, formats=("svgz",))
+    plt.close(fig)
+
+
+def test_envelope_decimation_keeps_the_extremes_of_chattering():
+    rng = np.random.default_rng(1)
+    y = np.sin(np.linspace(0, 20, 135_000)) + 0.01 * rng.standard_normal(135_000)
+    y[77_777] = 5.0
+    idx = P.envelope_indices(y, 5000)
+    assert len(idx) <= 5002
+    assert idx[0] == 0 and idx[-1] == len(y) - 1 and np.all(np.diff(idx) > 0)
+    assert y[idx].max() == y.max() and y[idx].min() == y.min()
+    # Every bucket keeps its own min and max: the envelope is the original one.
+    buckets = np.array_split(y, 50)
+    dec = np.array_split(y[idx], 50)
+    for b, d in zip(buckets, dec):
+        assert d.max() == pytest.approx(b.max(), abs=0.05)
+    assert np.array_equal(P.envelope_indices(y[:100], 5000), np.arange(100))
+
+
+def test_stride_decimation_keeps_the_ends():
+    idx = P.stride_indices(135_001, 5000)
+    assert len(idx) <= 5000 and idx[0] == 0 and idx[-1] == 135_000
+    assert np.array_equal(P.stride_indices(10, 5000), np.arange(10))
+
+
+def test_paper_figures_draw_decimated_lines(result, scene):
+    figs = {
+        "3d": P.plot_flight_3d(result, scene, max_points=500),
+        "xz": P.plot_projection(result, scene, "xz", max_points=500),
+        "xy": P.plot_projection(result, scene, "xy", max_points=500),
+        "thrusts": P.plot_thrusts(result, max_points=500),
+        "errors": P.plot_tracking_errors(result, max_points=500),
+        "states": P.plot_states(result, max_points=500),
+        "solve": P.plot_solve_times([result], max_points=500),
+    }
+    assert len(figs["thrusts"].axes) == 4 and len(figs["states"].axes) == 3
+    for name, fig in figs.items():
+        for ax in fig.axes:
+            for line in ax.get_lines():
+                assert len(line.get_xdata()) <= 502, name
+        plt.close(fig)
+    # The spectrum has one point per Welch bin: 512 above 0 Hz.
+    fig = P.plot_input_spectrum([result])
+    assert len(fig.axes[0].get_lines()[0].get_xdata()) == 512
+    plt.close(fig)
+
+
+def test_thrust_figure_keeps_the_chattering_burst(result):
+    fig = P.plot_thrusts(result, max_points=500)
+    line = fig.axes[0].get_lines()[0]
+    assert np.max(line.get_ydata()) == pytest.approx(result.u[:, 0].max())
+    plt.close(fig)
+
+
+def test_tracking_errors_are_against_the_active_target(result):
+    fig = P.plot_tracking_errors(result, max_points=10**6)
+    ex = fig.axes[0].get_lines()[0].get_ydata()
+    assert ex[100] == pytest.approx(abs(result.x[100, 0] - result.targets[0, 0]))
+    assert ex[5000] == pytest.approx(abs(result.x[5000, 0] - result.targets[1, 0]))
+    plt.close(fig)
+
+
+def test_zoom_on_the_closest_approach(result):
+    # Minimum clearance at step 3,000 (t = 30 s).
+    assert P.avoidance_window(result) == pytest.approx((20.0, 40.0))
+    assert P.avoidance_window(result, half_width=100.0) == pytest.approx((0.0, 59.99))
+    fig = P.plot_thrusts(result, t_range=(20.0, 40.0))
+    t = fig.axes[0].get_lines()[0].get_xdata()
+    assert t.min() == pytest.approx(20.0) and t.max() == pytest.approx(40.0)
+    assert np.max(fig.axes[0].get_lines()[0].get_ydata()) == pytest.approx(result.u[:, 0].max())
+    plt.close(fig)
+    for plot in (P.plot_states, P.plot_tracking_errors):
+        fig = plot(result, t_range=(45.0, 50.0))
+        assert all(45.0 <= x <= 50.0 for x in fig.axes[0].get_lines()[0].get_xdata())
+        plt.close(fig)
+    with pytest.raises(ValueError, match="t_range"):
+        P.plot_thrusts(result, t_range=(100.0, 200.0))
+
+
+def test_projection_rejects_unknown_plane(result, scene):
+    with pytest.raises(ValueError, match="plane"):
+        P.plot_projection(result, scene, plane="zz")
+
+
+def test_lidar_instants_pick_the_closest_approach(result, scene):
+    steps = P.lidar_instants(result, scene, n=3)
+    assert len(steps) == 3 and steps == sorted(steps)
+    # The flight passes the tower (region 0) within range: its closest approach is drawn.
+    tower = scene.clouds[0]
+    d = np.linalg.norm(result.x[:, None, :3] - tower[None], axis=2).min(axis=1)
+    assert d.min() < 1.5 and int(np.argmin(d)) in steps
+    pos = result.x[steps, :3]
+    r_s = result.config.simulation.lidar_range
+    assert all(np.linalg.norm(a - b) >= r_s for i, a in enumerate(pos) for b in pos[i + 1:])
+
+
+def test_scene_of_rebuilds_the_scene(result, scene):
+    rebuilt = P.scene_of(result)
+    assert rebuilt.name == "paper"
+    assert all(np.array_equal(a, b) for a, b in zip(rebuilt.clouds, scene.clouds))
+
+
+def test_scene_of_refuses_a_scene_edited_after_the_run(result):
+    moved = dataclasses.replace(result, targets=result.targets + 1.0)
+    with pytest.raises(ValueError, match="changed"):
+        P.scene_of(moved)
+
+
+def test_slice_through_the_middle_of_a_cloud():
+    cloud = np.array([[0.0, 0.0, 2.0], [4.0, 1.0, 6.0]])
+    z, extent = P.slice_through(cloud, pad=1.0)
+    assert z == 4.0 and extent == (-1.0, 5.0, -1.0, 2.0)
+
+
+def test_tutorial_figures_and_bound(scene):
+    cloud = scene.clouds[1]
+    z, extent = P.slice_through(cloud)
+    for fig in (P.plot_distance_slice(cloud, z, extent, 0.3, 0.8, n=30),
+                P.plot_eta_sigma(cloud, z, extent, n=25),
+                P.plot_gradient_field(cloud, z, extent, 0.3, 0.8, n=8),
+                P.plot_half_squared_limit(cloud, z, extent, etas=[0.05, 0.3], n=15)):
+        assert fig.axes
+        plt.close(fig)
+
+
+def test_animation_writes_a_gif_with_the_requested_frames(tmp_path, result, scene):
+    from PIL import Image
+
+    path = P.animate_flight(result, scene, tmp_path / "flight.gif", frames=3, dpi=30)
+    with Image.open(path) as im:
+        assert im.format == "GIF" and im.n_frames == 3
+    with pytest.raises(ValueError, match="frames"):
+        P.animate_flight(result, scene, tmp_path / "x.gif", frames=0)

@@ -1,0 +1,202 @@
+"""``python -m paper_repro reproduce``: run specs, the config-hash cache, the whole pipeline.
+
+The closed loop is replaced by a hand-made result here (``run_simulation`` is the single
+place that flies a mission); test_notebooks.py runs the notebooks on real closed-loop runs.
+"""
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from paper_repro import Config, DistanceParams, NMPCParams, paths
+from paper_repro import reproduce as R
+from paper_repro.cli import main
+from paper_repro.simulation import SimulationResult
+
+
+def _fake_result(spec, progress=None):
+    """A straight climb from the start with hover thrusts plus a small wobble."""
+    steps = min(spec.max_steps, 200)
+    k = np.arange(steps + 1)
+    x = np.zeros((steps + 1, 12))
+    x[:, :3] = np.array([22.0, -22.0, 0.0]) + np.outer(k * 0.01, [0.0, 0.0, 1.0])
+    u = 5.49 + 0.01 * np.sin(k[:-1] * 0.1)[:, None] * np.ones(4)
+    return SimulationResult(
+        t=k[:-1] * 0.01, x=x, u=u, x_a=x[:-1], u_a=np.full((steps, 4), 5.49),
+        solve_time=np.full(steps, 0.05), iterations=np.full(steps, 8),
+        success=np.ones(steps, bool), status=np.full(steps, "Solve_Succeeded"),
+        clearance=np.full(steps, 11.0), target_index=np.zeros(steps, int),
+        visible_points=np.zeros(steps, int), targets=np.array([[-12.0, 18, 11], [-21, 18, 0]]),
+        reached=np.array([-1, -1]), config=spec.config, meta={"wall_time_s": 1.0})
+
+
+@pytest.fixture
+def fake_simulation(monkeypatch):
+    calls = []
+
+    def fake(spec, progress=None):
+        calls.append(spec.name)
+        return _fake_result(spec)
+
+    monkeypatch.setattr(R, "run_simulation", fake)
+    return calls
+
+
+def test_config_hash_is_stable_and_changes_with_any_parameter():
+    cfg = Config()
+    h = R.config_hash(cfg, 1000)
+    assert len(h) == 64 and h == R.config_hash(Config.from_dict(cfg.to_dict()), 1000)
+    assert h != R.config_hash(cfg, 1001)
+    other = dataclasses.replace(cfg, distance=DistanceParams(metric="euclidean"))
+    assert h != R.config_hash(other, 1000)
+    eta = dataclasses.replace(cfg, distance=DistanceParams(eta=0.31))
+    assert h != R.config_hash(eta, 1000)
+
+
+def test_config_hash_follows_the_scene_geometry(monkeypatch):
+    cfg = Config()
+    fp = R.scene_fingerprint(cfg)
+    assert len(fp) == 64 and fp == R.scene_fingerprint(Config())
+    reseeded = dataclasses.replace(cfg, simulation=dataclasses.replace(cfg.simulation, seed=8))
+    assert R.scene_fingerprint(reseeded) != fp
+    h = R.config_hash(cfg, 1000)
+    # An edited scene (same name and seed, other points) must not hit the old cache.
+    monkeypatch.setattr(R, "scene_fingerprint", lambda config: "edited")
+    assert R.config_hash(cfg, 1000) != h
+
+
+def test_run_specs_fly_the_paper_mission_for_both_metrics():
+    full = R.run_specs()
+    assert [s.name for s in full] == ["paper-smooth", "paper-euclidean"]
+    assert [s.config.distance.metric for s in full] == list(R.METRICS)
+    assert all(s.config.simulation.scenario == "paper" for s in full)
+    # Not quick: enough steps to complete the mission (the config's limit).
+    assert all(s.max_steps == Config().simulation.max_steps for s in full)
+    assert all(s.max_steps == R.QUICK_STEPS for s in R.run_specs(quick=True))
+    assert all(s.max_steps == 77 for s in R.run_specs(quick=True, max_steps=77))
+    small = Config(nmpc=NMPCParams(region_slots=1))
+    assert all(s.config.nmpc.region_slots == 1 for s in R.run_specs(config=small))
+    assert len({s.key for s in full}) == 2
+    with pytest.raises(ValueError, match="max_steps"):
+        R.run_specs(max_steps=0)
+
+
+def test_cache_folder_is_named_by_run_and_hash(tmp_path):
+    spec = R.run_specs(quick=True)[0]
+    d = spec.directory(tmp_path)
+    assert d.parent == tmp_path and d.name == f"paper-smooth-{spec.key[:R.HASH_LENGTH]}"
+    assert spec.directory().parent == paths.results_dir()
+    assert R.default_result_dir("smooth") == R.run_specs()[0].directory()
+    with pytest.raises(ValueError, match="metric"):
+        R.default_result_dir("manhattan")
+
+
+def test_ensure_result_simulates_once_then_reuses_the_cache(tmp_path, fake_simulation):
+    spec = R.run_specs(max_steps=50)[0]
+    d, simulated = R.ensure_result(spec, tmp_path)
+    assert simulated and R.is_cached(d) and fake_simulation == ["paper-smooth"]
+    assert SimulationResult.load(d).config == spec.config
+    assert R.ensure_result(spec, tmp_path) == (d, False)
+    assert fake_simulation == ["paper-smooth"]
+    assert R.ensure_result(spec, tmp_path, force=True) == (d, True)
+    assert len(fake_simulation) == 2
+    assert [p.name for p in tmp_path.iterdir()] == [d.name]  # no .partial left behind
+
+
+def test_a_failed_simulation_leaves_nothing_that_looks_cached(tmp_path, monkeypatch):
+    def crash(spec, progress=None):
+        raise RuntimeError("solver exploded")
+
+    monkeypatch.setattr(R, "run_simulation", crash)
+    spec = R.run_specs(max_steps=50)[1]
+    with pytest.raises(RuntimeError):
+        R.ensure_result(spec, tmp_path)
+    assert not R.is_cached(spec.directory(tmp_path))
+
+
+def test_reproduce_simulates_missing_runs_then_only_redraws_byte_identical_figures(
+        tmp_path, fake_simulation):
+    kw = dict(quick=True, notebooks=["02_projections", "06_summary"],
+              results_dir=tmp_path / "results", figures_dir=tmp_path / "figures",
+              executed_dir=tmp_path / "executed", progress=False)
+    first_log, second_log = [], []
+    first = R.reproduce(log=first_log.append, **kw)
+    snapshot = {p.name: p.read_bytes() for p in first.outputs}
+    second = R.reproduce(log=second_log.append, **kw)
+
+    assert fake_simulation == ["paper-smooth", "paper-euclidean"]  # the second run reused
+    assert first.simulated == ["paper-smooth", "paper-euclidean"] and second.simulated == []
+    assert any("simulate paper-smooth: done in" in line for line in first_log)
+    assert any("simulate paper-smooth: cached" in line for line in second_log)
+    assert any("[4/4] notebook 06_summary" in line and "done in" in line for line in second_log)
+    assert any("note: the smooth run stopped after 200 steps" in line for line in second_log)
+    assert second_log[-1].startswith("done in")
+
+    names = {p.name for p in second.outputs}
+    assert {"fig02_projection_xz.pdf", "fig03_projection_xy.png", "summary.csv"} <= names
+    for p in second.outputs:  # byte-stable: PDFs carry no creation date
+        assert p.read_bytes() == snapshot[p.name], p.name
+    assert (tmp_path / "executed" / "06_summary.ipynb").is_file()
+    table = pd.read_csv(second.summary_csv, index_col="run")
+    assert list(table.index) == ["paper/smooth", "paper/euclidean"]
+    assert set(second.timings) == {"02_projections", "06_summary"}
+
+
+def test_reproduce_rejects_unknown_notebooks():
+    with pytest.raises(ValueError, match="nope"):
+        R.reproduce(notebooks=["nope"], log=lambda line: None)
+
+
+def test_quick_runs_write_into_a_git_ignored_folder():
+    assert paths.figures_dir(quick=True).parent == paths.figures_dir()
+    ignored = (paths.repo_root() / ".gitignore").read_text().split()
+    for entry in ("results/", "notebooks/executed/", "figures/quick/"):
+        assert entry in ignored, entry
+
+
+def test_paths_follow_the_root_override(monkeypatch, tmp_path):
+    monkeypatch.setenv(paths.ROOT_ENV, str(tmp_path))
+    assert paths.repo_root() == tmp_path.resolve()
+    assert paths.results_dir() == tmp_path.resolve() / "results"
+    monkeypatch.delenv(paths.ROOT_ENV)
+    assert (paths.repo_root() / "pyproject.toml").is_file()
+    assert Path(paths.notebooks_dir()).is_dir()
+
+
+def test_cli_reproduce_quick_runs_the_tutorial(tmp_path, monkeypatch, capsys):
+    # The tutorial reads no simulation: the command goes straight to the notebook.
+    monkeypatch.setattr(paths, "executed_dir", lambda quick=False: tmp_path / "executed")
+    figures = tmp_path / "figures"
+    code = main(["reproduce", "--quick", "--notebooks", "07_distance_tutorial",
+                 "--figures-dir", str(figures)])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "[1/1] notebook 07_distance_tutorial" in out and "done in" in out
+    assert (figures / "tutorial_eta_sigma.pdf").is_file()
+    assert (tmp_path / "executed" / "07_distance_tutorial.ipynb").is_file()
+
+
+def test_cli_solver_option_reaches_the_runs(tmp_path, monkeypatch, fake_simulation):
+    seen = []
+    original = R.reproduce
+
+    def spy(**kwargs):
+        seen.append(kwargs["config"].nmpc.solver)
+        return original(**{**kwargs, "notebooks": ["06_summary"]})
+
+    monkeypatch.setattr(R, "reproduce", spy)
+    monkeypatch.setattr(paths, "results_dir", lambda: tmp_path / "results")
+    monkeypatch.setattr(paths, "executed_dir", lambda quick=False: tmp_path / "executed")
+    assert main(["reproduce", "--quick", "--solver", "reference", "--no-progress",
+                 "--figures-dir", str(tmp_path / "figures")]) == 0
+    assert seen == ["reference"]
+    table = pd.read_csv(tmp_path / "figures" / "summary.csv", index_col="run")
+    assert list(table["solver"]) == ["reference", "reference"]
+
+
+def test_cli_rejects_unknown_notebook_names():
+    with pytest.raises(SystemExit):
+        main(["reproduce", "--notebooks", "99_nothing"])
