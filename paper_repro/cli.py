@@ -25,6 +25,9 @@ def main(argv: list[str] | None = None) -> int:
     run = sub.add_parser("run", help="fly one closed-loop mission and save its result")
     run.add_argument("--scenario", choices=("paper", "encounter"), default="paper")
     run.add_argument("--metric", choices=("smooth", "euclidean"), default="smooth")
+    run.add_argument("--solver", choices=("rti", "reference"), default="rti",
+                     help="rti: Gauss-Newton SQP + HPIPM (default); reference: IPOPT, exact "
+                          "Hessian, as in the paper")
     run.add_argument("--max-steps", type=_positive_int, default=None,
                      help="limit on closed-loop steps (default: the config's max_steps)")
     run.add_argument("--out", required=True, help="directory for result.npz and config.json")
@@ -53,6 +56,7 @@ def _run(args) -> int:
     cfg = dataclasses.replace(
         cfg,
         distance=dataclasses.replace(cfg.distance, metric=args.metric),
+        nmpc=dataclasses.replace(cfg.nmpc, solver=args.solver),
         simulation=dataclasses.replace(cfg.simulation, scenario=args.scenario),
     )
     result = simulate(cfg, max_steps=args.max_steps,

@@ -193,3 +193,20 @@ def test_bad_solve_arguments_are_rejected(smooth_controller):
         smooth_controller.solve(np.zeros(11), np.zeros(3))
     with pytest.raises(ValueError, match="target"):
         smooth_controller.solve(np.zeros(12), [0.0, np.nan, 1.0])
+
+
+@pytest.mark.parametrize("solver", ["rti", "reference"])
+def test_cli_run_saves_a_loadable_result(tmp_path, capsys, solver):
+    from paper_repro.cli import main
+    from paper_repro.simulation import SimulationResult
+
+    out = tmp_path / "run"
+    assert main(["run", "--scenario", "encounter", "--metric", "smooth", "--solver", solver,
+                 "--max-steps", "3", "--out", str(out), "--no-progress"]) == 0
+    line = capsys.readouterr().out.strip()
+    assert "encounter/smooth: 3 steps" in line and "failed solves 0" in line
+    result = SimulationResult.load(out)
+    assert result.steps == 3 and result.config.nmpc.solver == solver
+    frame = result.to_frame()
+    assert len(frame) == 3 and {"t", "x", "f1", "x_a", "clearance"} <= set(frame.columns)
+    assert result.meta["casadi"] and "git_commit" in result.meta
