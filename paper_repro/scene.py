@@ -184,7 +184,7 @@ def paper_scene(seed: int = 7) -> Scene:
                                 Box((3.5, 1.0, 11.0), (1.0, 5.0, 5.0))))),
         Region("U-channel", Difference(Box((-3.83, 9.78, 11.0), (3.0, 3.0, 4.0)),
                                         Box((-3.83, 10.55, 11.0), (1.6, 1.5, 2.4)))),
-        Region("column", Cylinder((-16.5, 18.6, 0.0), 1.2, 12.0)),
+        Region("column", Cylinder((-16.5, 19.5, 0.0), 1.2, 12.0)),
     )
     return Scene("paper", regions, (22.0, -22.0, 0.0), ((-12.0, 18.0, 11.0), (-21.0, 18.0, 0.0)),
                  seed)

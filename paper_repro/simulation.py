@@ -158,6 +158,7 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
     reached = np.full(len(targets), -1)
     target_index = 0
     plan: NMPCSolution | None = None
+    meta = run_metadata()  # before flying: the commit and versions that produce this run
     bar = _progress_bar(sim.max_steps, progress)
     wall = time.perf_counter()
     for k in range(sim.max_steps):
@@ -196,7 +197,6 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
     log["x"].append(x)
     arrays = {k: np.asarray(v) for k, v in log.items()}
     arrays["status"] = arrays["status"].astype(str)
-    meta = run_metadata()
     meta["wall_time_s"] = time.perf_counter() - wall
     meta["scene"] = scene.name
     return SimulationResult(targets=targets, reached=reached, config=cfg, meta=meta, **arrays)
