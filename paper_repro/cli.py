@@ -28,7 +28,7 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--solver", choices=("rti", "reference"), default="rti",
                      help="rti: Gauss-Newton SQP + HPIPM (default); reference: IPOPT, exact "
                           "Hessian, as in the paper")
-    run.add_argument("--max-steps", type=_positive_int, default=None,
+    run.add_argument("--max-steps", type=_reproduce.positive_int, default=None,
                      help="limit on closed-loop steps (default: the config's max_steps)")
     run.add_argument("--out", required=True, help="directory for result.npz and config.json")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
@@ -90,16 +90,6 @@ def _scene(args) -> int:
         print(f"{clearance(y, cloud):8.3f}{euclidean_distance(y, cloud):10.3f}"
               f"{smooth_distance(y, cloud, eta, sigma):10.3f}")
     return 0
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {value}")
-    return value
 
 
 if __name__ == "__main__":  # pragma: no cover

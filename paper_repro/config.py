@@ -77,7 +77,7 @@ class DistanceParams:
 
 @dataclass(frozen=True)
 class BarrierParams:
-    """Discrete CBF penalty, eq. (16)-(21).
+    """Discrete CBF penalty, eq. (16)-(20).
 
     Attributes
     ----------
@@ -86,12 +86,12 @@ class BarrierParams:
         distance, so d_min = 1.0 m² asks for about √2 ≈ 1.41 m from the smoothed cloud.
         The literal ½r² = 0.125 m² for r = 0.5 m gives a safe set that reaches into the
         clouds, because D stays near 0.2 m² even inside a sampled region.
-    kappa : κ > 0, 1/m², *chosen* 10. Sharpness of the softplus in eq. (20): the penalty
+    kappa : κ > 0, 1/m², *chosen* 10. Sharpness of the softplus in eq. (19): the penalty
         is within ln 2 / κ ≈ 0.07 m² of max(0, g).
-    epsilon : ε ≥ 1, *chosen* 2. Curvature exponent of eq. (20); ε < 1 gives infinite
+    epsilon : ε ≥ 1, *chosen* 2. Curvature exponent of eq. (19); ε < 1 gives infinite
         (NaN) gradients where the penalty vanishes, so it is rejected.
     mu : μ, *paper* 5e4. Penalty weight.
-    form : ``"printed"`` uses g = (1 − δ)·β_j − β_{j+1} exactly as eq. (19) is printed;
+    form : ``"printed"`` uses g = (1 − δ)·β_j − β_{j+1} exactly as eq. (18) is printed;
         ``"definition"`` uses g = δ·β_j − β_{j+1}, the form that matches Definition 1
         (β_{k+1} ≥ δ·β_k). The two differ: with δ = 0.95 the printed form lets β decay
         by at most 95 % per step, the definition form by at most 5 %.
@@ -129,7 +129,7 @@ def _diag(*values: float) -> tuple[float, ...]:
 
 @dataclass(frozen=True)
 class NMPCParams:
-    """Tracking NMPC of eq. (7) and (22), Section V.
+    """Tracking NMPC of eq. (7) and (21), Section V.
 
     Attributes
     ----------

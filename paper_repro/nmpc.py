@@ -1,16 +1,16 @@
 """Tracking NMPC with artificial equilibrium and smooth CBF penalties (Sections II and IV).
 
-The optimal control problem (eq. 7 with the cost of eq. 21)::
+The optimal control problem (eq. 21: eq. 7 with the cost of eq. 20)::
 
     min_{u, x_a, u_a}  Σ_{j<N} ‖x_j − x_a‖²_Q + ‖u_j − u_a‖²_R + ‖y_a − y_t‖²_T
                        + μ Σ_i ( F(y_a, 𝒪_i) + Σ_{j=0}^{N} F(y_j, 𝒪_i) )
     s.t.  x_0 = x,  x_{j+1} = f(x_j, u_j),  (x_j, u_j) ∈ 𝒳 × 𝒰,
           x_a = f(x_a, u_a),  (x_a, u_a) ∈ λ(𝒳 × 𝒰),  x_N = x_a
 
-with β = D − d_min (eq. 18), g(y_j) = c·β(y_j) − β(y_{j+1}) (eq. 19; c = 1 − δ as printed,
+with β = D − d_min (eq. 17), g(y_j) = c·β(y_j) − β(y_{j+1}) (eq. 18; c = 1 − δ as printed,
 or c = δ as in Definition 1, see :class:`~paper_repro.config.BarrierParams`), y_{N+1} = y_a
 (the artificial equilibrium is where the prediction rests), and
-F = (1/κ)[ln(1 + e^{κg})]^ε (eq. 20).
+F = (1/κ)[ln(1 + e^{κg})]^ε (eq. 19).
 
 The NLP is described once and built once (:class:`TrackingNMPC`); :meth:`TrackingNMPC.solve`
 is the hot path. What the LiDAR sees enters as parameters: ``region_slots`` slots of
@@ -296,7 +296,7 @@ def pack_scan(visible: Sequence[np.ndarray], position, config: Config) -> np.nda
 
 
 def region_barrier(metric: str, eta: float, d_min: float, capacity: int):
-    """Symbolic parameters of one region slot and β(y) = D(y) − d_min (eq. 18).
+    """Symbolic parameters of one region slot and β(y) = D(y) − d_min (eq. 17).
 
     Returns ``(params, beta)``: ``params`` is the slot's parameter column (its last entry is
     the ``active`` flag) and ``beta(y)`` the CasADi expression for a (3, 1) output ``y``.
@@ -319,7 +319,7 @@ def region_barrier(metric: str, eta: float, d_min: float, capacity: int):
 
 
 def _softplus_penalty(g, kappa: float, epsilon: float):
-    """F = (1/κ)[ln(1 + e^{κg})]^ε (eq. 20), in the overflow-free form of the softplus."""
+    """F = (1/κ)[ln(1 + e^{κg})]^ε (eq. 19), in the overflow-free form of the softplus."""
     z = kappa * g
     softplus = ca.fmax(z, 0) + ca.log1p(ca.exp(-ca.fabs(z)))
     return softplus**epsilon / kappa

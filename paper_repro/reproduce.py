@@ -399,7 +399,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true",
                         help=f"short mission ({QUICK_STEPS} steps per metric) into "
                              "figures/quick/ for a fast look")
-    parser.add_argument("--max-steps", type=_positive_int, default=None,
+    parser.add_argument("--max-steps", type=positive_int, default=None,
                         help="step limit per run (default: the whole mission, or "
                              f"{QUICK_STEPS} with --quick)")
     parser.add_argument("--force", action="store_true",
@@ -468,7 +468,8 @@ def _show(path) -> str:
         return str(p)
 
 
-def _positive_int(text: str) -> int:
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1, with a message naming the accepted range."""
     try:
         value = int(text)
     except ValueError:
