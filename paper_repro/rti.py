@@ -37,7 +37,7 @@ import numpy as np
 
 from .config import Config
 from .model import N_INPUTS, N_STATES, rk4_discretisation
-from .nmpc import NMPCSolution, pack_scan, region_barrier
+from .nmpc import NMPCSolution, _as_vector, pack_scan, region_barrier
 
 N_EQ = 4  # artificial equilibrium: position (3) and yaw
 
@@ -104,7 +104,10 @@ class RealTimeNMPC:
         """Same contract as :meth:`paper_repro.nmpc.TrackingNMPC.solve`, except the warm start:
         the previous plan moved to the current position (:meth:`NMPCSolution.reanchored`).
         With one iteration per instant that keeps the closed loop within about a millimetre
-        of the converged solution, where the time-shifted plan drifts by centimetres."""
+        of the converged solution, where the time-shifted plan drifts by centimetres.
+
+        ``status`` is ``"iterated"`` (``max_iter`` SQP steps taken, the real-time iteration's
+        normal outcome), ``"converged"`` (step below ``step_tol``) or ``"qp_failed"``."""
         start = time.perf_counter()  # solve_time includes packing the scan: the whole call
         x0 = _as_vector("x0", x0, N_STATES)
         target = _as_vector("target", target, 3)
@@ -115,7 +118,7 @@ class RealTimeNMPC:
         U = np.array(guess.u, dtype=float)
         a = np.array([*guess.x_a[:3], guess.x_a[5]], dtype=float)
 
-        success, status, it = False, "max_iter", 0
+        success, status, it = False, "iterated", 0
         for it in range(1, self.max_iter + 1):  # noqa: B007 - `it` is reported below
             step, ok = self._sqp_step(x0, X, U, a, params)
             if not ok:
@@ -128,7 +131,7 @@ class RealTimeNMPC:
                 success, status = True, "converged"
                 break
         else:
-            success, status = True, "max_iter"  # real-time iteration: the last iterate is used
+            success, status = True, "iterated"  # real-time iteration: the last iterate is used
         elapsed = time.perf_counter() - start
         finite = np.all(np.isfinite(X)) and np.all(np.isfinite(U)) and np.all(np.isfinite(a))
         x_a = self._x_eq(a)
@@ -391,10 +394,3 @@ def compiled(fn: ca.Function, cache_dir: str | os.PathLike | None = None) -> ca.
                             "-lm"], check=True, capture_output=True)
             shutil.move(str(tmp_lib), lib)
     return ca.external(name, str(lib))
-
-
-def _as_vector(name, value, n):
-    arr = np.asarray(value, dtype=float)
-    if arr.shape != (n,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be a finite array of shape ({n},), got {arr!r}")
-    return arr
