@@ -24,78 +24,86 @@ sampling instant and stops early when the step is small.
 
 from __future__ import annotations
 
-import hashlib
-import os
-import shutil
-import subprocess
-import tempfile
 import time
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
+from ._native import NativeFunction, compiled, compiler
 from .config import Config
 from .model import N_INPUTS, N_STATES, rk4_discretisation
 from .nmpc import NMPCSolution, _as_vector, pack_scan, region_barrier
+from .stage_qp import StageQP
 
 N_EQ = 4  # artificial equilibrium: position (3) and yaw
 
 
 class RealTimeNMPC:
-    """The paper's tracking NMPC solved by Gauss-Newton SQP with HPIPM.
+    """The paper's tracking NMPC solved by Gauss-Newton SQP on its stage structure.
 
     Parameters
     ----------
     config : run configuration (same fields as :class:`~paper_repro.nmpc.TrackingNMPC`).
     max_iter : SQP iterations per sampling instant (1 is the classic real-time iteration).
     step_tol : stop iterating when max |Δw| falls below this.
-    compile : build the linearisation as C code (cached); ``False`` uses CasADi's virtual
-        machine (slower, but needs no compiler).
+    qp_solver : ``"riccati"`` (default): :class:`~paper_repro.stage_qp.StageQP`, a Riccati
+        recursion warm-started with the previous active set, with HPIPM as the fallback when
+        it does not find the active set; ``"hpipm"``: HPIPM's interior-point method for
+        every QP. Both return the same QP solution (to their tolerances).
+    compile : build the linearisation as C code (cached). ``False`` uses CasADi's virtual
+        machine (slower, no compiler needed) and HPIPM.
+
+    Attributes
+    ----------
+    qp_counts : QPs solved so far by each path: ``riccati``, ``hpipm`` (as the chosen solver
+        or as the fallback) and ``failed``.
     """
 
     def __init__(self, config: Config | None = None, max_iter: int = 1, step_tol: float = 1e-6,
-                 compile: bool = True):
+                 qp_solver: str = "riccati", compile: bool = True):
         self.config = cfg = config or Config()
         if not (isinstance(max_iter, int) and max_iter >= 1):
             raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
         if not step_tol > 0:
             raise ValueError(f"step_tol must be > 0, got {step_tol!r}")
+        if qp_solver not in ("riccati", "hpipm"):
+            raise ValueError(f"qp_solver must be 'riccati' or 'hpipm', got {qp_solver!r}")
         self.max_iter, self.step_tol = max_iter, step_tol
-        self.bound_tol = 1e-9
         p = cfg.nmpc
         self.horizon, self.region_slots = p.horizon, p.region_slots
         self.points_per_region = p.points_per_region
         self.metric = cfg.distance.metric
         self._hover = np.full(N_INPUTS, cfg.quadrotor.hover_thrust)
-        fn = _linearisation(cfg)
-        self._lin = compiled(fn) if compile else fn
         self._layout()
-        self._qp = ca.conic("rti_qp", "hpipm", {"h": self._h_sp, "a": self._a_sp},
-                            {"N": self.horizon, "nx": self._nz,
-                             "nu": [N_INPUTS] * self.horizon + [0],
-                             "ng": [0] * self.horizon + [N_STATES],
-                             # 'robust' converges where 'speed' stalls on this problem; bounds
-                             # of ±1e4 on the free variables keep HPIPM's tolerances relative.
-                             "hpipm": {"iter_max": 100, "mode": "robust"}, "inf": 1e4,
-                             "error_on_fail": False, "print_problem": False})
-        self._step = self._step_function()
+        fn = _linearisation(cfg)
+        self._lin_sizes = [fn.nnz_out(i) for i in range(fn.n_out())]
+        native = compile and compiler() is not None
+        self.qp_solver = qp_solver if native else "hpipm"
+        # The linearisation writes straight into fixed buffers (NativeFunction); without a
+        # compiler it runs in CasADi's virtual machine.
+        self._lin = NativeFunction(fn) if native else fn
+        self._riccati = (StageQP(self._nz, [N_INPUTS] * self.horizon, N_STATES)
+                         if self.qp_solver == "riccati" else None)
+        self._hpipm = ca.conic("rti_qp", "hpipm", {"h": self._h_sp, "a": self._a_sp},
+                               {"N": self.horizon, "nx": self._nz,
+                                "nu": [N_INPUTS] * self.horizon + [0],
+                                "ng": [0] * self.horizon + [N_STATES],
+                                # 'robust' converges where 'speed' stalls on this problem;
+                                # bounds of ±1e4 on the free variables keep HPIPM's
+                                # tolerances relative.
+                                "hpipm": {"iter_max": 100, "mode": "robust"}, "inf": 1e4,
+                                "error_on_fail": False, "print_problem": False})
+        self._qp_matrices = self._matrix_function()
+        self.qp_counts = {"riccati": 0, "hpipm": 0, "failed": 0}
 
-    def _step_function(self) -> ca.Function:
-        """x0, X, U, A, params -> the QP at this iterate: H, g, A and the equality right-hand side.
-
-        H and A come out as sparse matrices with the QP solver's sparsity, so they go to HPIPM
-        without any conversion in Python.
-        """
-        n = self.horizon
-        ins = [ca.MX.sym("x0", N_STATES), ca.MX.sym("X", N_STATES, n),
-               ca.MX.sym("U", N_INPUTS, n), ca.MX.sym("A", N_EQ, n + 1),
-               ca.MX.sym("p", self._lin.size1_in(4))]
-        h_src, q, j_src, gap, eq = self._lin(*ins)
+    def _matrix_function(self) -> ca.Function:
+        """Blocks of the linearisation -> HPIPM's sparse H and A (a fixed permutation)."""
+        h_src = ca.MX.sym("h", self._lin_sizes[0])
+        j_src = ca.MX.sym("j", self._lin_sizes[2])
         a_src = ca.vertcat(j_src[:self._n_ab], ca.DM(self._minus_ones), j_src[self._n_ab:])
         h = ca.MX(self._h_sp, h_src[self._h_perm.tolist()])
         amat = ca.MX(self._a_sp, a_src[self._a_perm.tolist()])
-        return ca.Function("rti_qp_data", ins, [h, q, amat, -ca.vertcat(gap, eq)])
+        return ca.Function("rti_qp_matrices", [h_src, j_src], [h, amat])
 
     # --- public ------------------------------------------------------------------------------
 
@@ -155,20 +163,53 @@ class RealTimeNMPC:
         x[:3], x[5] = a[:3], a[3]
         return x
 
+    def _linearise(self, x0, X, U, a, params):
+        """Every stage's QP blocks at this iterate: h, q, j ([A_j B_j] then C), gap, eq."""
+        A = np.tile(a[:, None], (1, self.horizon + 1))
+        if isinstance(self._lin, NativeFunction):
+            ins = self._lin.inputs
+            ins[0][:, 0], ins[1][:], ins[2][:], ins[3][:], ins[4][:, 0] = \
+                x0, X[1:].T, U.T, A, params
+            self._lin()
+            return self._lin.outputs
+        return [np.asarray(v).ravel() for v in self._lin(x0, X[1:].T, U.T, A, params)]
+
     def _sqp_step(self, x0, X, U, a, params):
-        """One Gauss-Newton SQP step: linearise every stage, solve the QP with HPIPM."""
+        """One Gauss-Newton SQP step: linearise every stage, solve the QP."""
         w = np.zeros(self._nw)  # the iterate; s entries are 0 and unbounded
         w[self._iw_x] = X[1:]
         w[self._iw_u] = U
         w[self._iw_a] = a
-        A = np.tile(a[:, None], (1, self.horizon + 1))
-        h, q, amat, rhs = self._step(x0, X[1:].T, U.T, A, params)
-        sol = self._qp(h=h, g=q, a=amat, lba=rhs, uba=rhs, lbx=self._lbw - w, ubx=self._ubw - w)
-        dw = np.asarray(sol["x"]).ravel()
-        ok = bool(self._qp.stats().get("success", False)) and bool(np.all(np.isfinite(dw)))
-        size = float(np.max(np.abs(dw[self._bounded]))) if ok else np.inf
+        h, q, j, gap, eq = self._linearise(x0, X, U, a, params)
+        lb, ub = self._lbw - w, self._ubw - w
+        dw = None
+        if self._riccati is not None:
+            res = self._riccati.solve(h, q, j[:self._n_ab], gap, j[self._n_ab:], -eq, lb, ub)
+            if res.success:
+                dw = res.z
+                self.qp_counts["riccati"] += 1
+        if dw is None:
+            dw = self._solve_hpipm(h, q, j, gap, eq, lb, ub)
+        ok = dw is not None and bool(np.all(np.isfinite(dw)))
+        if not ok:
+            self.qp_counts["failed"] += 1
+            return {}, False
+        size = float(np.max(np.abs(dw[self._bounded])))
         return {"x": dw[self._iw_x], "u": dw[self._iw_u], "a": dw[self._iw_a[0]],
-                "size": size}, ok
+                "size": size}, True
+
+    def _solve_hpipm(self, h, q, j, gap, eq, lb, ub):
+        """The QP by HPIPM; its active set then seeds the Riccati solver's next call."""
+        hmat, amat = self._qp_matrices(h, j)
+        rhs = -np.concatenate([gap, eq])
+        sol = self._hpipm(h=hmat, g=q, a=amat, lba=rhs, uba=rhs, lbx=lb, ubx=ub)
+        if not self._hpipm.stats().get("success", False):
+            return None
+        self.qp_counts["hpipm"] += 1
+        dw = np.asarray(sol["x"]).ravel()
+        if self._riccati is not None:
+            self._riccati.seed(dw, lb, ub, np.asarray(sol["lam_x"]).ravel())
+        return dw
 
     def _layout(self):
         """Sparsity of the QP and the maps from the compiled function's blocks to it."""
@@ -350,7 +391,8 @@ def _linearisation(cfg: Config) -> ca.Function:
     Q = ca.vertcat(q0m, ca.vec(qm), qN_)
     J = ca.vertcat(j0m, ca.vec(jm), jN_)
 
-    return ca.Function("rti_linearisation", [X0, X, U, A, P], [H, Q, J, gaps, eN_],
+    outs = [ca.densify(v) for v in (H, Q, J, gaps, eN_)]
+    return ca.Function("rti_linearisation", [X0, X, U, A, P], outs,
                        ["x0", "X", "U", "A", "p"], ["h", "q", "j", "gap", "eq"])
 
 
@@ -365,32 +407,3 @@ def _penalty_derivatives(g, kappa: float, epsilon: float):
     d2 = kappa * epsilon * ((epsilon - 1) * sp ** (epsilon - 2) * sig**2
                             + sp ** (epsilon - 1) * sig * (1 - sig))
     return d1, d2
-
-
-def compiled(fn: ca.Function, cache_dir: str | os.PathLike | None = None) -> ca.Function:
-    """The same function as compiled C, built once with the system C compiler and cached.
-
-    The shared library is keyed by a hash of the generated source, in ``cache_dir``
-    (default: ``$PAPER_REPRO_CACHE`` or ``~/.cache/paper_repro``). Falls back to ``fn`` itself
-    (CasADi's virtual machine) when no compiler is found.
-    """
-    cc = shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
-    if cc is None:
-        return fn
-    cache = Path(cache_dir or os.environ.get("PAPER_REPRO_CACHE",
-                                             Path.home() / ".cache" / "paper_repro"))
-    cache.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory() as tmp:
-        name = fn.name()
-        gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-        gen.add(fn)
-        src_path = Path(gen.generate(str(Path(tmp)) + os.sep))
-        source = src_path.read_bytes()
-        key = hashlib.sha256(source + ca.__version__.encode()).hexdigest()[:16]
-        lib = cache / f"{name}_{key}.so"
-        if not lib.exists():
-            tmp_lib = Path(tmp) / lib.name
-            subprocess.run([cc, "-O2", "-fPIC", "-shared", str(src_path), "-o", str(tmp_lib),
-                            "-lm"], check=True, capture_output=True)
-            shutil.move(str(tmp_lib), lib)
-    return ca.external(name, str(lib))

@@ -1,0 +1,326 @@
+/* Stage-structured QP: Riccati recursion with a warm-started primal-dual active set.
+ *
+ * Solves   min  sum_j 1/2 z_j' H_j z_j + q_j' z_j,   z_j = (x_j, u_j), z_N = x_N
+ *          s.t. x_{j+1} = AB_j z_j + b_j            (j = 0..N-1; x_0 is free)
+ *               C x_N = d                           (nc terminal equalities)
+ *               lb <= z <= ub                       (entries may be +-INFINITY)
+ *
+ * The caller supplies a guess of the active bounds (act: -1 lower, +1 upper, 0 free) and of
+ * their multipliers. Each outer iteration fixes the active bounds and the terminal equality
+ * through an augmented Lagrangian with weight rho: one Riccati factorisation, then a few
+ * backward/forward vector passes that update the multipliers until the equalities hold to
+ * eq_tol. Then the KKT conditions of the inequalities are checked (primal-dual active set,
+ * Hintermueller-Ito-Kunisch): bounds that are violated enter the set, bounds whose
+ * multiplier has the wrong sign leave it. No change means the KKT point is found.
+ *
+ * Storage: matrices column-major; blocks of all stages concatenated.  H_j is s_j x s_j with
+ * s_j = nx_j + nu_j; AB_j is nx_{j+1} x s_j; C is nc x nx_N.
+ *
+ * Return: 0 solved; 1 outer iterations exhausted; 2 equalities not met (inconsistent active
+ * set); 3 a factorisation was not positive definite; 4 workspace too small.
+ */
+#include <math.h>
+#include <string.h>
+
+typedef struct {
+    int outer;    /* active-set iterations used */
+    int passes;   /* vector passes (multiplier updates) in all */
+    int changes;  /* active-set changes in all */
+    int n_active; /* active bounds at the solution */
+} qp_stats;
+
+static int off_w(const int *nx, const int *nu, int j) {
+    int o = 0;
+    for (int i = 0; i < j; ++i) o += nx[i] + nu[i];
+    return o;
+}
+
+/* In-place Cholesky of the leading n x n block (stride ld); lower triangle. */
+static int chol(double *a, int n, int ld) {
+    for (int k = 0; k < n; ++k) {
+        double d = a[k + k * ld];
+        for (int i = 0; i < k; ++i) d -= a[k + i * ld] * a[k + i * ld];
+        if (!(d > 0.0)) return 1;
+        d = sqrt(d);
+        a[k + k * ld] = d;
+        for (int r = k + 1; r < n; ++r) {
+            double s = a[r + k * ld];
+            for (int i = 0; i < k; ++i) s -= a[r + i * ld] * a[k + i * ld];
+            a[r + k * ld] = s / d;
+        }
+    }
+    return 0;
+}
+
+/* Solve L L' v = v in place (L lower, stride ld). */
+static void chol_solve(const double *l, int n, int ld, double *v) {
+    for (int k = 0; k < n; ++k) {
+        double s = v[k];
+        for (int i = 0; i < k; ++i) s -= l[k + i * ld] * v[i];
+        v[k] = s / l[k + k * ld];
+    }
+    for (int k = n - 1; k >= 0; --k) {
+        double s = v[k];
+        for (int i = k + 1; i < n; ++i) s -= l[i + k * ld] * v[i];
+        v[k] = s / l[k + k * ld];
+    }
+}
+
+size_t stage_qp_workspace(int n, const int *nx, const int *nu) {
+    size_t w = 0;
+    for (int j = 0; j <= n; ++j) {
+        int s = nx[j] + (j < n ? nu[j] : 0);
+        w += (size_t)nx[j] * nx[j] + (size_t)s * s + 2 * (size_t)s;  /* P, M, m, z */
+    }
+    int mx = 0;
+    for (int j = 0; j <= n; ++j) mx = nx[j] > mx ? nx[j] : mx;
+    w += 2 * (size_t)mx;  /* scratch vectors */
+    return w;
+}
+
+/* Factorise with the current active set. P_j, and M_j holding L_uu (Cholesky of the input
+ * block) and K_j = -M_uu^{-1} M_ux in its (u, x) block. */
+static int factorise(int n, const int *nx, const int *nu, const double *h, const double *ab,
+                     int nc, const double *c, const signed char *act, double rho,
+                     double **P, double **M) {
+    const double *hj;
+    /* Stage N: P_N = H_N + rho C'C + rho on active entries. */
+    {
+        int s = nx[n];
+        hj = h;
+        for (int j = 0; j < n; ++j) hj += (size_t)(nx[j] + nu[j]) * (nx[j] + nu[j]);
+        double *p = P[n];
+        memcpy(p, hj, sizeof(double) * s * s);
+        for (int cc = 0; cc < s; ++cc)
+            for (int r = 0; r < s; ++r) {
+                double acc = 0.0;
+                for (int k = 0; k < nc; ++k) acc += c[k + r * nc] * c[k + cc * nc];
+                p[r + cc * s] += rho * acc;
+            }
+        int o = off_w(nx, nu, n);
+        for (int i = 0; i < s; ++i)
+            if (act[o + i]) p[i + i * s] += rho;
+    }
+    /* Backward over stages. */
+    size_t h_off = 0, ab_off = 0;
+    size_t h_offs[n + 1], ab_offs[n + 1];
+    for (int j = 0; j < n; ++j) {
+        h_offs[j] = h_off;
+        ab_offs[j] = ab_off;
+        h_off += (size_t)(nx[j] + nu[j]) * (nx[j] + nu[j]);
+        ab_off += (size_t)nx[j + 1] * (nx[j] + nu[j]);
+    }
+    for (int j = n - 1; j >= 0; --j) {
+        int x = nx[j], u = nu[j], s = x + u, x1 = nx[j + 1];
+        const double *a = ab + ab_offs[j];
+        const double *p1 = P[j + 1];
+        double *m = M[j];
+        memcpy(m, h + h_offs[j], sizeof(double) * s * s);
+        int o = off_w(nx, nu, j);
+        for (int i = 0; i < s; ++i)
+            if (act[o + i]) m[i + i * s] += rho;
+        /* m += AB' P AB, one column of P AB at a time. */
+        double t[x1];
+        for (int cc = 0; cc < s; ++cc) {
+            const double *acol = a + (size_t)cc * x1;
+            for (int r = 0; r < x1; ++r) t[r] = 0.0;
+            for (int k = 0; k < x1; ++k) {
+                double v = acol[k];
+                if (v == 0.0) continue;
+                const double *pk = p1 + (size_t)k * x1;
+                for (int r = 0; r < x1; ++r) t[r] += pk[r] * v;
+            }
+            for (int r = cc; r < s; ++r) {  /* lower triangle, then mirror */
+                const double *ar = a + (size_t)r * x1;
+                double acc = 0.0;
+                for (int k = 0; k < x1; ++k) acc += ar[k] * t[k];
+                m[r + cc * s] += acc;
+            }
+        }
+        for (int cc = 0; cc < s; ++cc)
+            for (int r = 0; r < cc; ++r) m[r + cc * s] = m[cc + r * s];
+        /* Input block: Cholesky; K = -M_uu^{-1} M_ux stored over M_ux. */
+        if (u > 0) {
+            if (chol(m + x + x * s, u, s)) return 3;
+            for (int cc = 0; cc < x; ++cc) {
+                double v[u];
+                for (int i = 0; i < u; ++i) v[i] = m[x + i + cc * s];
+                chol_solve(m + x + x * s, u, s, v);
+                for (int i = 0; i < u; ++i) m[x + i + cc * s] = -v[i];
+            }
+        }
+        /* P_j = M_xx + M_xu K = M_xx + K' M_ux, with M_ux = M_xu' kept in the upper block. */
+        double *p = P[j];
+        for (int cc = 0; cc < x; ++cc)
+            for (int r = 0; r < x; ++r) {
+                double acc = m[r + cc * s];
+                for (int i = 0; i < u; ++i) acc += m[r + (x + i) * s] * m[x + i + cc * s];
+                p[r + cc * x] = acc;
+            }
+        for (int cc = 0; cc < x; ++cc)
+            for (int r = cc + 1; r < x; ++r) {
+                double v = 0.5 * (p[r + cc * x] + p[cc + r * x]);
+                p[r + cc * x] = p[cc + r * x] = v;
+            }
+    }
+    /* x_0 is free: factorise P_0 in place. */
+    if (chol(P[0], nx[0], nx[0])) return 3;
+    return 0;
+}
+
+/* Linear terms -> solution z, for fixed factorisation. g is the full gradient (q plus the
+ * augmented-Lagrangian terms), gc the terminal part C'(lamc - rho d). */
+static void vector_pass(int n, const int *nx, const int *nu, const double *ab,
+                        const double *b, const double *g, double **P, double **M,
+                        double *pv, double *scratch, double *z) {
+    size_t ab_offs[n + 1], b_offs[n + 1];
+    size_t ab_off = 0, b_off = 0;
+    for (int j = 0; j < n; ++j) {
+        ab_offs[j] = ab_off;
+        b_offs[j] = b_off;
+        ab_off += (size_t)nx[j + 1] * (nx[j] + nu[j]);
+        b_off += nx[j + 1];
+    }
+    /* pv holds p_{j+1}; m_j is stored in z's slots temporarily (z_j = m_j, then replaced). */
+    int on = off_w(nx, nu, n);
+    memcpy(pv, g + on, sizeof(double) * nx[n]);
+    double *mvecs = z;  /* reuse: m_j at offset of stage j */
+    for (int j = n - 1; j >= 0; --j) {
+        int x = nx[j], u = nu[j], s = x + u, x1 = nx[j + 1];
+        const double *a = ab + ab_offs[j];
+        const double *p1 = P[j + 1];
+        const double *m = M[j];
+        int o = off_w(nx, nu, j);
+        double *mv = mvecs + o;
+        /* w = P_{j+1} b_j + p_{j+1} */
+        double *w = scratch;
+        for (int r = 0; r < x1; ++r) w[r] = pv[r];
+        for (int k = 0; k < x1; ++k) {
+            double v = b[b_offs[j] + k];
+            if (v == 0.0) continue;
+            for (int r = 0; r < x1; ++r) w[r] += p1[r + (size_t)k * x1] * v;
+        }
+        /* m = g_j + AB' w */
+        for (int r = 0; r < s; ++r) {
+            double acc = g[o + r];
+            const double *ar = a + (size_t)r * x1;
+            for (int k = 0; k < x1; ++k) acc += ar[k] * w[k];
+            mv[r] = acc;
+        }
+        /* k_j = -M_uu^{-1} m_u (kept in mv's u slots); p_j = m_x + K' m_u */
+        double mu[u > 0 ? u : 1];
+        for (int i = 0; i < u; ++i) mu[i] = mv[x + i];
+        for (int r = 0; r < x; ++r) {
+            double acc = mv[r];
+            for (int i = 0; i < u; ++i) acc += m[x + i + r * s] * mu[i];
+            pv[r] = acc;
+        }
+        if (u > 0) {
+            chol_solve(m + x + x * s, u, s, mu);
+            for (int i = 0; i < u; ++i) mv[x + i] = -mu[i];
+        }
+    }
+    /* x_0 = -P_0^{-1} p_0 */
+    for (int r = 0; r < nx[0]; ++r) z[r] = -pv[r];
+    chol_solve(P[0], nx[0], nx[0], z);
+    /* Forward: u_j = K_j x_j + k_j, x_{j+1} = AB_j z_j + b_j. */
+    for (int j = 0; j < n; ++j) {
+        int x = nx[j], u = nu[j], s = x + u, x1 = nx[j + 1];
+        const double *m = M[j];
+        int o = off_w(nx, nu, j);
+        double *zj = z + o;
+        for (int i = 0; i < u; ++i) {
+            double acc = zj[x + i];  /* k_j */
+            for (int r = 0; r < x; ++r) acc += m[x + i + r * s] * zj[r];
+            zj[x + i] = acc;
+        }
+        double *zn = z + o + s;
+        const double *a = ab + ab_offs[j];
+        for (int r = 0; r < x1; ++r) zn[r] = b[b_offs[j] + r];
+        for (int cc = 0; cc < s; ++cc) {
+            double v = zj[cc];
+            if (v == 0.0) continue;
+            const double *acol = a + (size_t)cc * x1;
+            for (int r = 0; r < x1; ++r) zn[r] += acol[r] * v;
+        }
+    }
+}
+
+int stage_qp_solve(int n, const int *nx, const int *nu, const double *h, const double *q,
+                   const double *ab, const double *b, int nc, const double *c, const double *d,
+                   const double *lb, const double *ub, signed char *act, double *lam,
+                   double *lamc, double rho, double eq_tol, double kkt_tol, int max_outer,
+                   int max_passes, double *work, size_t work_size, double *z, qp_stats *st) {
+    if (work_size < stage_qp_workspace(n, nx, nu)) return 4;
+    int nw = off_w(nx, nu, n) + nx[n];
+    double *P[n + 1], *M[n + 1];
+    double *wp = work;
+    for (int j = 0; j <= n; ++j) {
+        int s = nx[j] + (j < n ? nu[j] : 0);
+        P[j] = wp; wp += (size_t)nx[j] * nx[j];
+        M[j] = wp; wp += (size_t)s * s;
+    }
+    double *g = wp; wp += nw;
+    double *pv = wp; wp += nw;  /* >= max nx */
+    double *scratch = wp;
+    int on = off_w(nx, nu, n), xn = nx[n];
+    memset(st, 0, sizeof(*st));
+    /* Multipliers of inactive bounds are zero. */
+    for (int i = 0; i < nw; ++i)
+        if (!act[i]) lam[i] = 0.0;
+
+    for (int outer = 1; outer <= max_outer; ++outer) {
+        st->outer = outer;
+        int info = factorise(n, nx, nu, h, ab, nc, c, act, rho, P, M);
+        if (info) return info;
+        double res = INFINITY;
+        for (int pass = 0; pass < max_passes; ++pass) {
+            st->passes++;
+            for (int i = 0; i < nw; ++i) {
+                g[i] = q[i];
+                if (act[i]) g[i] += lam[i] - rho * (act[i] < 0 ? lb[i] : ub[i]);
+            }
+            for (int r = 0; r < xn; ++r) {
+                double acc = 0.0;
+                for (int k = 0; k < nc; ++k) acc += c[k + r * nc] * (lamc[k] - rho * d[k]);
+                g[on + r] += acc;
+            }
+            vector_pass(n, nx, nu, ab, b, g, P, M, pv, scratch, z);
+            /* Residuals of the fixed bounds and the terminal equality; multiplier update. */
+            res = 0.0;
+            for (int i = 0; i < nw; ++i)
+                if (act[i]) {
+                    double e = z[i] - (act[i] < 0 ? lb[i] : ub[i]);
+                    lam[i] += rho * e;
+                    res = fmax(res, fabs(e));
+                }
+            for (int k = 0; k < nc; ++k) {
+                double e = -d[k];
+                for (int r = 0; r < xn; ++r) e += c[k + r * nc] * z[on + r];
+                lamc[k] += rho * e;
+                res = fmax(res, fabs(e));
+            }
+            if (res < eq_tol) break;
+        }
+        if (!(res < eq_tol)) return 2;
+        /* KKT of the bounds: primal feasibility of the free ones, sign of the fixed ones'
+         * multipliers (lower: lam <= 0, upper: lam >= 0). */
+        int changes = 0, n_active = 0;
+        for (int i = 0; i < nw; ++i) {
+            if (act[i] < 0 && lam[i] > kkt_tol) {
+                act[i] = 0; lam[i] = 0.0; ++changes;
+            } else if (act[i] > 0 && lam[i] < -kkt_tol) {
+                act[i] = 0; lam[i] = 0.0; ++changes;
+            } else if (!act[i] && z[i] < lb[i] - kkt_tol) {
+                act[i] = -1; ++changes;
+            } else if (!act[i] && z[i] > ub[i] + kkt_tol) {
+                act[i] = 1; ++changes;
+            }
+            n_active += act[i] != 0;
+        }
+        st->changes += changes;
+        st->n_active = n_active;
+        if (!changes) return 0;
+    }
+    return 1;
+}

@@ -1,0 +1,153 @@
+"""A Riccati QP solver for the SQP's stage-structured QPs, warm-started with the active set.
+
+The QP of every real-time iteration has the optimal-control structure
+
+    min  Σ_j ½ z_jᵀ H_j z_j + q_jᵀ z_j,     z_j = (x_j, u_j),  z_N = x_N,
+    s.t. x_{j+1} = [A_j B_j] z_j + b_j,      C x_N = d,        lb ≤ z ≤ ub,
+
+with x_0 free. Between two sampling instants the set of bounds that hold with equality barely
+changes (the plan is re-anchored, not re-planned), so an interior-point method, which
+rediscovers it in about a dozen Riccati factorisations, does more work than needed. This
+solver keeps the active set and its multipliers from the previous call and, per iteration,
+
+1. fixes the active bounds and the terminal equality with an augmented Lagrangian
+   (weight ``rho``): one Riccati factorisation, then cheap vector passes that update the
+   multipliers until the equalities hold to ``eq_tol``;
+2. checks the KKT conditions of the bounds: a violated bound enters the set, a bound whose
+   multiplier has the wrong sign leaves it (the primal-dual active-set method of
+   Hintermüller, Ito and Kunisch, 2002). No change means the QP is solved.
+
+The result is the QP's exact solution (to the tolerances), not an approximation; when the
+active set is not found within ``max_outer`` iterations the call reports failure and the
+caller falls back on an interior-point solver. The C source is ``_stage_qp.c``; it is
+compiled once per machine (see :mod:`paper_repro._native`).
+"""
+
+from __future__ import annotations
+
+import ctypes
+from dataclasses import dataclass
+from importlib import resources
+
+import numpy as np
+
+from ._native import build_library
+
+_D = ctypes.POINTER(ctypes.c_double)
+STATUS = {0: "solved", 1: "active_set_not_found", 2: "equalities_not_met",
+          3: "not_positive_definite", 4: "workspace"}
+
+
+class _Stats(ctypes.Structure):
+    _fields_ = [("outer", ctypes.c_int), ("passes", ctypes.c_int), ("changes", ctypes.c_int),
+                ("n_active", ctypes.c_int)]
+
+
+def _library():
+    lib = ctypes.CDLL(str(build_library(
+        "stage_qp", resources.files("paper_repro").joinpath("_stage_qp.c").read_bytes())))
+    lib.stage_qp_workspace.restype = ctypes.c_size_t
+    lib.stage_qp_workspace.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p]
+    lib.stage_qp_solve.restype = ctypes.c_int
+    ptr, i, f = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
+    lib.stage_qp_solve.argtypes = [i, ptr, ptr, ptr, ptr, ptr, ptr, i, ptr, ptr, ptr, ptr, ptr,
+                                   ptr, ptr, f, f, f, i, i, ptr, ctypes.c_size_t, ptr, ptr]
+    return lib
+
+
+@dataclass
+class StageQPResult:
+    z: np.ndarray
+    status: str
+    outer: int    # active-set iterations (factorisations)
+    passes: int   # vector passes
+    changes: int  # active-set changes
+    n_active: int
+
+    @property
+    def success(self) -> bool:
+        return self.status == "solved"
+
+
+class StageQP:
+    """Solver for one fixed stage structure; keeps the active set between calls.
+
+    Parameters
+    ----------
+    nx : (N+1,) state sizes, x_0 included (x_0 is a free variable).
+    nu : (N,) input sizes.
+    nc : rows of the terminal equality C x_N = d.
+    rho : augmented-Lagrangian weight of the fixed bounds and the terminal equality.
+    eq_tol : the fixed bounds and C x_N = d hold to this (absolute).
+    kkt_tol : tolerance of the bound and multiplier-sign checks.
+    max_outer : active-set iterations before giving up.
+    max_passes : multiplier updates per factorisation before giving up.
+    """
+
+    def __init__(self, nx, nu, nc: int, rho: float = 1e8, eq_tol: float = 1e-10,
+                 kkt_tol: float = 1e-9, max_outer: int = 8, max_passes: int = 30):
+        self.nx = np.ascontiguousarray(nx, dtype=np.intc)
+        self.nu = np.ascontiguousarray(nu, dtype=np.intc)
+        self.horizon = len(self.nu)
+        if len(self.nx) != self.horizon + 1 or self.horizon < 1:
+            raise ValueError(f"nx must have len(nu) + 1 = {self.horizon + 1} entries, "
+                             f"got {len(self.nx)}")
+        if np.any(self.nx < 1) or np.any(self.nu < 0):
+            raise ValueError("nx must be >= 1 and nu >= 0 at every stage")
+        if not (rho > 0 and eq_tol > 0 and kkt_tol > 0):
+            raise ValueError("rho, eq_tol and kkt_tol must be > 0")
+        self.nc = int(nc)
+        self.sizes = np.r_[self.nx[:-1] + self.nu, self.nx[-1]]
+        self.nw = int(self.sizes.sum())
+        self.rho, self.eq_tol, self.kkt_tol = float(rho), float(eq_tol), float(kkt_tol)
+        self.max_outer, self.max_passes = int(max_outer), int(max_passes)
+        self._lib = _library()
+        self._work = np.zeros(self._lib.stage_qp_workspace(
+            self.horizon, self.nx.ctypes.data, self.nu.ctypes.data))
+        self.z = np.zeros(self.nw)
+        self.active = np.zeros(self.nw, dtype=np.int8)  # −1 lower, +1 upper, 0 free
+        self.lam = np.zeros(self.nw)
+        self.lam_c = np.zeros(self.nc)
+        self._stats = _Stats()
+
+    def reset(self) -> None:
+        """Forget the active set and the multipliers (the next call starts from none)."""
+        self.active[:] = 0
+        self.lam[:] = 0.0
+        self.lam_c[:] = 0.0
+
+    def seed(self, z, lb, ub, lam, tol: float = 1e-7) -> None:
+        """Take the active set of a solution found elsewhere (an interior-point solver's):
+        bounds that ``z`` meets within ``tol`` and whose multiplier ``lam`` (CasADi's sign
+        convention: < 0 at a lower bound, > 0 at an upper one) is not zero."""
+        z, lb, ub, lam = (np.asarray(v, float) for v in (z, lb, ub, lam))
+        at_lower = (z - lb < tol) & (lam < -self.kkt_tol)
+        at_upper = (ub - z < tol) & (lam > self.kkt_tol)
+        self.active[:] = 0
+        self.active[at_lower], self.active[at_upper] = -1, 1
+        self.lam[:] = np.where(self.active != 0, lam, 0.0)
+        self.lam_c[:] = 0.0
+
+    def solve(self, h, q, ab, b, c, d, lb, ub) -> StageQPResult:
+        """h: H blocks, ab: [A_j B_j] blocks (each column-major, concatenated), q, b, d, lb,
+        ub: vectors; c: C column-major. Arrays must be float64 and contiguous."""
+        active, lam, lam_c = self.active.copy(), self.lam.copy(), self.lam_c.copy()
+        info = self._lib.stage_qp_solve(
+            ctypes.c_int(self.horizon), self.nx.ctypes.data, self.nu.ctypes.data,
+            _ptr(h), _ptr(q), _ptr(ab), _ptr(b), ctypes.c_int(self.nc), _ptr(c), _ptr(d),
+            _ptr(lb), _ptr(ub), active.ctypes.data, lam.ctypes.data, lam_c.ctypes.data,
+            ctypes.c_double(self.rho), ctypes.c_double(self.eq_tol),
+            ctypes.c_double(self.kkt_tol), ctypes.c_int(self.max_outer),
+            ctypes.c_int(self.max_passes), self._work.ctypes.data,
+            ctypes.c_size_t(self._work.size), self.z.ctypes.data, ctypes.byref(self._stats))
+        s = self._stats
+        if info == 0:  # keep the active set for the next call only when it is right
+            self.active[:], self.lam[:], self.lam_c[:] = active, lam, lam_c
+        return StageQPResult(self.z.copy(), STATUS.get(info, f"error {info}"), s.outer,
+                             s.passes, s.changes, s.n_active)
+
+
+def _ptr(a: np.ndarray):
+    if a.dtype != np.float64 or not a.flags.c_contiguous:
+        raise ValueError("QP data must be contiguous float64 arrays")
+    return a.ctypes.data
