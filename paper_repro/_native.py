@@ -2,8 +2,8 @@
 
 Two kinds of C are built here:
 
-* CasADi functions turned into C (:func:`compiled`, :class:`NativeFunction`): the SQP's
-  linearisation, generated from the symbolic model;
+* CasADi functions turned into C (:class:`NativeFunction`): the SQP's linearisation,
+  generated from the symbolic model;
 * the stage-structured QP solver written for this package (``_stage_qp.c``).
 
 Shared libraries are keyed by a hash of their source, the compiler flags and the CPU (the
@@ -55,7 +55,8 @@ def build_library(name: str, source: bytes, key_extra: bytes = b"") -> Path:
     cc = compiler()
     if cc is None:
         raise RuntimeError("no C compiler found (set CC or install gcc)")
-    key = hashlib.sha256(source + key_extra + " ".join(FLAGS).encode() + _cpu_tag()).hexdigest()[:16]
+    digest = hashlib.sha256(source + key_extra + " ".join(FLAGS).encode() + _cpu_tag())
+    key = digest.hexdigest()[:16]
     lib = cache_dir() / f"{name}_{key}.so"
     if not lib.exists():
         with tempfile.TemporaryDirectory() as tmp:
@@ -67,18 +68,13 @@ def build_library(name: str, source: bytes, key_extra: bytes = b"") -> Path:
     return lib
 
 
-def _generated_source(fn: ca.Function) -> bytes:
+def function_library(fn: ca.Function) -> Path:
+    """The shared library of a CasADi function's generated C (built once, cached)."""
     with tempfile.TemporaryDirectory() as tmp:
         gen = ca.CodeGenerator(f"{fn.name()}.c", {"with_header": False})
         gen.add(fn)
-        return Path(gen.generate(str(Path(tmp)) + os.sep)).read_bytes()
-
-
-def compiled(fn: ca.Function) -> ca.Function:
-    """The same CasADi function as compiled C (cached); ``fn`` itself without a compiler."""
-    if compiler() is None:
-        return fn
-    return ca.external(fn.name(), str(build_library(fn.name(), _generated_source(fn), ca.__version__.encode())))
+        source = Path(gen.generate(str(Path(tmp)) + os.sep)).read_bytes()
+    return build_library(fn.name(), source, key_extra=ca.__version__.encode())
 
 
 class NativeFunction:
@@ -95,7 +91,7 @@ class NativeFunction:
             if not fn.sparsity_out(i).is_dense():
                 raise ValueError(f"output {fn.name_out(i)!r} of {fn.name()} must be dense")
         self.name = fn.name()
-        self._lib = ctypes.CDLL(str(build_library(self.name, _generated_source(fn), ca.__version__.encode())))
+        self._lib = ctypes.CDLL(str(function_library(fn)))
         self._fn = getattr(self._lib, self.name)
         self.inputs = [np.zeros(fn.size_in(i), order="F") for i in range(fn.n_in())]
         self.outputs = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]

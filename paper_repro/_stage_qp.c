@@ -1,23 +1,30 @@
-/* Stage-structured QP: Riccati recursion with a warm-started primal-dual active set.
+/* Stage-structured QP: Riccati recursion inside a warm-started dual active-set method.
  *
  * Solves   min  sum_j 1/2 z_j' H_j z_j + q_j' z_j,   z_j = (x_j, u_j), z_N = x_N
  *          s.t. x_{j+1} = AB_j z_j + b_j            (j = 0..N-1; x_0 is free)
  *               C x_N = d                           (nc terminal equalities)
  *               lb <= z <= ub                       (entries may be +-INFINITY)
  *
- * The caller supplies a guess of the active bounds (act: -1 lower, +1 upper, 0 free) and of
- * their multipliers. Each outer iteration fixes the active bounds and the terminal equality
- * through an augmented Lagrangian with weight rho: one Riccati factorisation, then a few
- * backward/forward vector passes that update the multipliers until the equalities hold to
- * eq_tol. Then the KKT conditions of the inequalities are checked (primal-dual active set,
- * Hintermueller-Ito-Kunisch): bounds that are violated enter the set, bounds whose
- * multiplier has the wrong sign leave it. No change means the KKT point is found.
+ * Every iterate is the solution of an equality-constrained QP (EQP) in which the bounds of
+ * the active set are fixed. Each EQP is one Riccati factorisation; the fixed bounds and
+ * C x_N = d enter through an augmented Lagrangian with weight rho, whose multipliers are
+ * updated by cheap backward/forward vector passes until the equalities hold to eq_tol.
+ *
+ * 1. The caller's guess of the active set (act: -1 lower, +1 upper, 0 free; the previous
+ *    sampling instant's) is made dual feasible by releasing bounds whose multiplier has the
+ *    wrong sign. Usually this is a single EQP, and the answer.
+ * 2. Then dual active-set steps (Goldfarb & Idnani, 1983): the most violated bound is moved
+ *    from its current value to the bound; solution and multipliers are affine along the way,
+ *    and a fixed bound whose multiplier reaches zero first is released there (a partial
+ *    step). A bound that depends on the fixed ones gets a pure dual step along the
+ *    direction in which the inconsistent EQP's multipliers diverge. Each step keeps dual
+ *    feasibility, so the method terminates for a strictly convex QP.
  *
  * Storage: matrices column-major; blocks of all stages concatenated.  H_j is s_j x s_j with
  * s_j = nx_j + nu_j; AB_j is nx_{j+1} x s_j; C is nc x nx_N.
  *
- * Return: 0 solved; 1 outer iterations exhausted; 2 equalities not met (inconsistent active
- * set); 3 a factorisation was not positive definite; 4 workspace too small.
+ * Return: 0 solved; 1 max_outer EQPs used; 2 infeasible (or an EQP that could not be made
+ * consistent); 3 a factorisation was not positive definite; 4 workspace too small.
  */
 #include <math.h>
 #include <string.h>
@@ -66,16 +73,17 @@ static void chol_solve(const double *l, int n, int ld, double *v) {
     }
 }
 
-size_t stage_qp_workspace(int n, const int *nx, const int *nu) {
-    size_t w = 0;
+size_t stage_qp_workspace(int n, const int *nx, const int *nu, int nc) {
+    size_t w = 0, nw = 0;
+    int mx = 0;
     for (int j = 0; j <= n; ++j) {
         int s = nx[j] + (j < n ? nu[j] : 0);
-        w += (size_t)nx[j] * nx[j] + (size_t)s * s + 2 * (size_t)s;  /* P, M, m, z */
+        w += (size_t)nx[j] * nx[j] + (size_t)s * s;  /* P_j, M_j */
+        nw += s;
+        mx = nx[j] > mx ? nx[j] : mx;
     }
-    int mx = 0;
-    for (int j = 0; j <= n; ++j) mx = nx[j] > mx ? nx[j] : mx;
-    w += 2 * (size_t)mx;  /* scratch vectors */
-    return w;
+    /* g, pv, target, z0, lam0, dlam; scratch; lamc0, dlamc */
+    return w + 6 * nw + mx + 2 * (size_t)nc;
 }
 
 /* Factorise with the current active set. P_j, and M_j holding L_uu (Cholesky of the input
@@ -246,12 +254,65 @@ static void vector_pass(int n, const int *nx, const int *nu, const double *ab,
     }
 }
 
+typedef struct {
+    int n, nc, nw, max_passes;
+    const int *nx, *nu;
+    const double *h, *q, *ab, *b, *c, *d;
+    double rho, eq_tol;
+    double **P, **M, *g, *pv, *scratch;
+    double *dlam, *dlamc;  /* last multiplier update: the dual direction when inconsistent */
+} problem;
+
+/* The equality-constrained QP with the bounds in `act` fixed at `target`: one factorisation,
+ * then multiplier updates until the fixed bounds and C x_N = d hold to eq_tol (return 0), or
+ * max_passes (return 2: the active set is inconsistent). */
+static int solve_eqp(const problem *p, const signed char *act, const double *target,
+                     double *lam, double *lamc, double *z, qp_stats *st) {
+    int info = factorise(p->n, p->nx, p->nu, p->h, p->ab, p->nc, p->c, act, p->rho, p->P,
+                         p->M);
+    if (info) return info;
+    int on = off_w(p->nx, p->nu, p->n), xn = p->nx[p->n], nc = p->nc;
+    for (int pass = 0; pass < p->max_passes; ++pass) {
+        st->passes++;
+        for (int i = 0; i < p->nw; ++i)
+            p->g[i] = p->q[i] + (act[i] ? lam[i] - p->rho * target[i] : 0.0);
+        for (int r = 0; r < xn; ++r) {
+            double acc = 0.0;
+            for (int k = 0; k < nc; ++k) acc += p->c[k + r * nc] * (lamc[k] - p->rho * p->d[k]);
+            p->g[on + r] += acc;
+        }
+        vector_pass(p->n, p->nx, p->nu, p->ab, p->b, p->g, p->P, p->M, p->pv, p->scratch, z);
+        double res = 0.0;
+        for (int i = 0; i < p->nw; ++i)
+            if (act[i]) {
+                double e = z[i] - target[i];
+                lam[i] += p->rho * e;
+                p->dlam[i] = e;
+                res = fmax(res, fabs(e));
+            }
+        for (int k = 0; k < nc; ++k) {
+            double e = -p->d[k];
+            for (int r = 0; r < xn; ++r) e += p->c[k + r * nc] * z[on + r];
+            lamc[k] += p->rho * e;
+            p->dlamc[k] = e;
+            res = fmax(res, fabs(e));
+        }
+        if (res < p->eq_tol) return 0;
+    }
+    return 2;
+}
+
+/* A fixed bound whose multiplier has the wrong sign (lower: lam <= 0, upper: lam >= 0). */
+static int wrong_sign(signed char a, double lam, double tol) {
+    return (a < 0 && lam > tol) || (a > 0 && lam < -tol);
+}
+
 int stage_qp_solve(int n, const int *nx, const int *nu, const double *h, const double *q,
                    const double *ab, const double *b, int nc, const double *c, const double *d,
                    const double *lb, const double *ub, signed char *act, double *lam,
                    double *lamc, double rho, double eq_tol, double kkt_tol, int max_outer,
                    int max_passes, double *work, size_t work_size, double *z, qp_stats *st) {
-    if (work_size < stage_qp_workspace(n, nx, nu)) return 4;
+    if (work_size < stage_qp_workspace(n, nx, nu, nc)) return 4;
     int nw = off_w(nx, nu, n) + nx[n];
     double *P[n + 1], *M[n + 1];
     double *wp = work;
@@ -260,67 +321,116 @@ int stage_qp_solve(int n, const int *nx, const int *nu, const double *h, const d
         P[j] = wp; wp += (size_t)nx[j] * nx[j];
         M[j] = wp; wp += (size_t)s * s;
     }
-    double *g = wp; wp += nw;
-    double *pv = wp; wp += nw;  /* >= max nx */
-    double *scratch = wp;
-    int on = off_w(nx, nu, n), xn = nx[n];
+    problem pr = {n, nc, nw, max_passes, nx, nu, h, q, ab, b, c, d, rho, eq_tol, P, M,
+                  NULL, NULL, NULL, NULL, NULL};
+    pr.g = wp; wp += nw;
+    pr.pv = wp; wp += nw;
+    double *target = wp; wp += nw;
+    double *z0 = wp; wp += nw;
+    double *lam0 = wp; wp += nw;
+    pr.dlam = wp; wp += nw;
+    double *lamc0 = wp; wp += nc;
+    pr.dlamc = wp; wp += nc;
+    pr.scratch = wp;
     memset(st, 0, sizeof(*st));
-    /* Multipliers of inactive bounds are zero. */
-    for (int i = 0; i < nw; ++i)
+    for (int i = 0; i < nw; ++i) {
         if (!act[i]) lam[i] = 0.0;
-
-    for (int outer = 1; outer <= max_outer; ++outer) {
-        st->outer = outer;
-        int info = factorise(n, nx, nu, h, ab, nc, c, act, rho, P, M);
-        if (info) return info;
-        double res = INFINITY;
-        for (int pass = 0; pass < max_passes; ++pass) {
-            st->passes++;
-            for (int i = 0; i < nw; ++i) {
-                g[i] = q[i];
-                if (act[i]) g[i] += lam[i] - rho * (act[i] < 0 ? lb[i] : ub[i]);
-            }
-            for (int r = 0; r < xn; ++r) {
-                double acc = 0.0;
-                for (int k = 0; k < nc; ++k) acc += c[k + r * nc] * (lamc[k] - rho * d[k]);
-                g[on + r] += acc;
-            }
-            vector_pass(n, nx, nu, ab, b, g, P, M, pv, scratch, z);
-            /* Residuals of the fixed bounds and the terminal equality; multiplier update. */
-            res = 0.0;
-            for (int i = 0; i < nw; ++i)
-                if (act[i]) {
-                    double e = z[i] - (act[i] < 0 ? lb[i] : ub[i]);
-                    lam[i] += rho * e;
-                    res = fmax(res, fabs(e));
-                }
-            for (int k = 0; k < nc; ++k) {
-                double e = -d[k];
-                for (int r = 0; r < xn; ++r) e += c[k + r * nc] * z[on + r];
-                lamc[k] += rho * e;
-                res = fmax(res, fabs(e));
-            }
-            if (res < eq_tol) break;
-        }
-        if (!(res < eq_tol)) return 2;
-        /* KKT of the bounds: primal feasibility of the free ones, sign of the fixed ones'
-         * multipliers (lower: lam <= 0, upper: lam >= 0). */
-        int changes = 0, n_active = 0;
-        for (int i = 0; i < nw; ++i) {
-            if (act[i] < 0 && lam[i] > kkt_tol) {
-                act[i] = 0; lam[i] = 0.0; ++changes;
-            } else if (act[i] > 0 && lam[i] < -kkt_tol) {
-                act[i] = 0; lam[i] = 0.0; ++changes;
-            } else if (!act[i] && z[i] < lb[i] - kkt_tol) {
-                act[i] = -1; ++changes;
-            } else if (!act[i] && z[i] > ub[i] + kkt_tol) {
-                act[i] = 1; ++changes;
-            }
-            n_active += act[i] != 0;
-        }
-        st->changes += changes;
-        st->n_active = n_active;
-        if (!changes) return 0;
+        target[i] = act[i] < 0 ? lb[i] : ub[i];
     }
-    return 1;
+    int info;
+    for (int i = 0; i < nw; ++i) pr.dlam[i] = 0.0;
+
+    /* 1. The guess, made dual feasible: release every fixed bound whose multiplier has the
+     *    wrong sign, until none has (an inconsistent guess is dropped altogether). With the
+     *    previous instant's set this is usually one solve, and the solution. */
+    for (;;) {
+        if (++st->outer > max_outer) return 1;
+        info = solve_eqp(&pr, act, target, lam, lamc, z, st);
+        if (info == 2) {  /* an inconsistent guess: start from no fixed bound */
+            for (int i = 0; i < nw; ++i) { st->changes += act[i] != 0; act[i] = 0; lam[i] = 0.0; }
+            for (int k = 0; k < nc; ++k) lamc[k] = 0.0;
+            continue;
+        }
+        if (info) return info;
+        int changes = 0;
+        for (int i = 0; i < nw; ++i)
+            if (act[i] && wrong_sign(act[i], lam[i], kkt_tol)) {
+                act[i] = 0; lam[i] = 0.0; ++changes;
+            }
+        st->changes += changes;
+        if (!changes) break;
+    }
+    /* 2. Dual active-set steps (Goldfarb-Idnani): take the most violated bound p and move
+     *    its target from z_p to the bound. Solution and multipliers are affine in the
+     *    target; if a fixed bound's multiplier reaches zero on the way, stop there, release
+     *    it and go on. Every step keeps dual feasibility and raises the dual objective. */
+    for (;;) {
+        int p = -1;
+        double worst = kkt_tol;
+        for (int i = 0; i < nw; ++i) {
+            if (act[i]) continue;
+            double v = fmax(lb[i] - z[i], z[i] - ub[i]);
+            if (v > worst) { worst = v; p = i; }
+        }
+        if (p < 0) break;
+        memcpy(z0, z, sizeof(double) * nw);
+        memcpy(lam0, lam, sizeof(double) * nw);
+        memcpy(lamc0, lamc, sizeof(double) * nc);
+        act[p] = z[p] < lb[p] ? -1 : 1;
+        target[p] = act[p] < 0 ? lb[p] : ub[p];
+        lam[p] = lam0[p] = 0.0;
+        st->changes++;
+        for (;;) {
+            if (++st->outer > max_outer) return 1;
+            info = solve_eqp(&pr, act, target, lam, lamc, z, st);
+            if (info == 2) {
+                /* p depends on the fixed bounds (and C x_N = d): the multipliers diverge
+                 * along the dual direction dlam (the residual of the inconsistent system,
+                 * orthogonal to the constraint normals). Pure dual step: move along it from
+                 * lam0 until a fixed bound's multiplier reaches zero, release that bound; the
+                 * primal point z0 stays. None reaching zero: the QP is infeasible. */
+                double step = INFINITY;
+                int drop = -1;
+                for (int i = 0; i < nw; ++i) {
+                    if (!act[i] || i == p) continue;
+                    double dl = pr.dlam[i];
+                    if ((act[i] < 0 && dl > 0.0) || (act[i] > 0 && dl < 0.0)) {
+                        double t = -lam0[i] / dl;
+                        if (t < step) { step = t; drop = i; }
+                    }
+                }
+                if (drop < 0) return 2;
+                for (int i = 0; i < nw; ++i)
+                    lam0[i] = act[i] ? lam0[i] + step * pr.dlam[i] : 0.0;
+                for (int k = 0; k < nc; ++k) lamc0[k] += step * pr.dlamc[k];
+                act[drop] = 0; lam0[drop] = 0.0;
+                st->changes++;
+                memcpy(z, z0, sizeof(double) * nw);
+                memcpy(lam, lam0, sizeof(double) * nw);
+                memcpy(lamc, lamc0, sizeof(double) * nc);
+                continue;
+            }
+            if (info) return info;
+            double tau = 1.0;
+            int drop = -1;
+            for (int i = 0; i < nw; ++i)
+                if (act[i] && i != p && wrong_sign(act[i], lam[i], kkt_tol)) {
+                    double t = lam0[i] / (lam0[i] - lam[i]);
+                    if (t < tau) { tau = t; drop = i; }
+                }
+            if (drop < 0) break;  /* p reached its bound */
+            for (int i = 0; i < nw; ++i) {
+                z[i] = z0[i] + tau * (z[i] - z0[i]);
+                lam[i] = lam0[i] + tau * (lam[i] - lam0[i]);
+            }
+            for (int k = 0; k < nc; ++k) lamc[k] = lamc0[k] + tau * (lamc[k] - lamc0[k]);
+            act[drop] = 0; lam[drop] = 0.0;
+            st->changes++;
+            memcpy(z0, z, sizeof(double) * nw);
+            memcpy(lam0, lam, sizeof(double) * nw);
+            memcpy(lamc0, lamc, sizeof(double) * nc);
+        }
+    }
+    for (int i = 0; i < nw; ++i) st->n_active += act[i] != 0;
+    return 0;
 }

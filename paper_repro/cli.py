@@ -26,8 +26,11 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--scenario", choices=("paper", "encounter"), default="paper")
     run.add_argument("--metric", choices=("smooth", "euclidean"), default="smooth")
     run.add_argument("--solver", choices=("rti", "reference"), default="rti",
-                     help="rti: Gauss-Newton SQP + HPIPM (default); reference: IPOPT, exact "
-                          "Hessian, as in the paper")
+                     help="rti: Gauss-Newton real-time iteration (default); reference: IPOPT, "
+                          "exact Hessian, as in the paper")
+    run.add_argument("--qp-solver", choices=("riccati", "hpipm"), default="riccati",
+                     help="QP solver of rti: riccati (warm-started active set, default) or "
+                          "hpipm (interior point)")
     run.add_argument("--max-steps", type=_reproduce.positive_int, default=None,
                      help="limit on closed-loop steps (default: the config's max_steps)")
     run.add_argument("--out", required=True, help="directory for result.npz and config.json")
@@ -56,7 +59,7 @@ def _run(args) -> int:
     cfg = dataclasses.replace(
         cfg,
         distance=dataclasses.replace(cfg.distance, metric=args.metric),
-        nmpc=dataclasses.replace(cfg.nmpc, solver=args.solver),
+        nmpc=dataclasses.replace(cfg.nmpc, solver=args.solver, qp_solver=args.qp_solver),
         simulation=dataclasses.replace(cfg.simulation, scenario=args.scenario),
     )
     result = simulate(cfg, max_steps=args.max_steps,

@@ -147,6 +147,9 @@ class NMPCParams:
         ``"reference"`` (IPOPT with the exact Hessian, :mod:`paper_repro.nmpc`, as the paper).
     sqp_iterations : SQP iterations per sampling instant of the ``rti`` solver (1 is the
         real-time iteration).
+    qp_solver : QP solver of the ``rti`` solver: ``"riccati"`` (default, a Riccati recursion
+        warm-started with the previous active set, :mod:`paper_repro.stage_qp`, HPIPM as its
+        fallback) or ``"hpipm"`` (HPIPM's interior-point method for every QP).
     region_slots : number of LiDAR-visible regions the NLP can hold at once.
     points_per_region : capacity of each region slot; scans with more visible points are
         reduced to the nearest ones (see ``paper_repro.nmpc``).
@@ -170,6 +173,7 @@ class NMPCParams:
     lam: float = 0.99
     solver: str = "rti"
     sqp_iterations: int = 1
+    qp_solver: str = "riccati"
     region_slots: int = 2
     points_per_region: int = 120
 
@@ -189,6 +193,7 @@ class NMPCParams:
         if not (0.0 < self.lam < 1.0):
             raise ValueError(f"lam must lie in (0, 1), got {self.lam!r}")
         _require_choice("solver", self.solver, ("rti", "reference"))
+        _require_choice("qp_solver", self.qp_solver, ("riccati", "hpipm"))
         for name in ("region_slots", "points_per_region", "sqp_iterations"):
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= 1):

@@ -243,6 +243,7 @@ def make_controller(config: Config | None = None, **options):
     from .rti import RealTimeNMPC
 
     options.setdefault("max_iter", config.nmpc.sqp_iterations)
+    options.setdefault("qp_solver", config.nmpc.qp_solver)
     return RealTimeNMPC(config, **options)
 
 

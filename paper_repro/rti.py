@@ -1,4 +1,4 @@
-"""Real-time NMPC: Gauss-Newton SQP on the OCP's stage structure, QPs solved by HPIPM.
+"""Real-time NMPC: Gauss-Newton SQP on the OCP's stage structure, with a Riccati QP solver.
 
 Same optimal control problem as :mod:`paper_repro.nmpc` (the IPOPT reference), rewritten so that
 every term lives in one stage and a structure-exploiting QP solver applies:
@@ -16,10 +16,12 @@ every term lives in one stage and a structure-exploiting QP solver applies:
   F''(g)·∇g∇gᵀ is a positive semidefinite curvature model (the exact penalty Hessian is
   indefinite and made the real-time iteration chatter in a prototype).
 
-Each iteration linearises all stages with one call of a compiled CasADi function (C code built
-once with the system compiler and cached, see :func:`compiled`), fills the QP's block matrices
-and calls HPIPM (shipped with CasADi). The default runs up to ``max_iter`` full SQP steps per
-sampling instant and stops early when the step is small.
+Each iteration linearises all stages with one call of a CasADi function generated as C, built
+once with the system compiler and cached (:class:`~paper_repro._native.NativeFunction`), and
+solves the QP with :class:`~paper_repro.stage_qp.StageQP`: a Riccati recursion that starts from
+the previous instant's active set, so that one factorisation usually suffices. HPIPM (shipped
+with CasADi) is the fallback and the alternative (``qp_solver="hpipm"``). The default runs up
+to ``max_iter`` full SQP steps per sampling instant and stops early when the step is small.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import time
 import casadi as ca
 import numpy as np
 
-from ._native import NativeFunction, compiled, compiler
+from ._native import NativeFunction, compiler
 from .config import Config
 from .model import N_INPUTS, N_STATES, rk4_discretisation
 from .nmpc import NMPCSolution, _as_vector, pack_scan, region_barrier

@@ -150,6 +150,7 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
     lidar = Lidar(scene.clouds, sim.lidar_range)
     truth = cKDTree(scene.all_points)
     ctl = controller or make_controller(cfg)
+    counts_before = dict(ctl.qp_counts) if hasattr(ctl, "qp_counts") else None
     targets = np.asarray(scene.targets, float)
 
     x, _ = equilibrium(scene.start, 0.0, cfg.quadrotor)
@@ -199,6 +200,8 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
     arrays["status"] = arrays["status"].astype(str)
     meta["wall_time_s"] = time.perf_counter() - wall
     meta["scene"] = scene.name
+    if counts_before is not None:  # QPs of this run by solver path (rti solver only)
+        meta["qp_counts"] = {k: v - counts_before.get(k, 0) for k, v in ctl.qp_counts.items()}
     return SimulationResult(targets=targets, reached=reached, config=cfg, meta=meta, **arrays)
 
 

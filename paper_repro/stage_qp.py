@@ -47,7 +47,8 @@ def _library():
     lib = ctypes.CDLL(str(build_library(
         "stage_qp", resources.files("paper_repro").joinpath("_stage_qp.c").read_bytes())))
     lib.stage_qp_workspace.restype = ctypes.c_size_t
-    lib.stage_qp_workspace.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p]
+    lib.stage_qp_workspace.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p,
+                                       ctypes.c_int]
     lib.stage_qp_solve.restype = ctypes.c_int
     ptr, i, f = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
     lib.stage_qp_solve.argtypes = [i, ptr, ptr, ptr, ptr, ptr, ptr, i, ptr, ptr, ptr, ptr, ptr,
@@ -84,7 +85,7 @@ class StageQP:
     max_passes : multiplier updates per factorisation before giving up.
     """
 
-    def __init__(self, nx, nu, nc: int, rho: float = 1e8, eq_tol: float = 1e-10,
+    def __init__(self, nx, nu, nc: int, rho: float = 1e6, eq_tol: float = 1e-10,
                  kkt_tol: float = 1e-9, max_outer: int = 8, max_passes: int = 30):
         self.nx = np.ascontiguousarray(nx, dtype=np.intc)
         self.nu = np.ascontiguousarray(nu, dtype=np.intc)
@@ -99,11 +100,15 @@ class StageQP:
         self.nc = int(nc)
         self.sizes = np.r_[self.nx[:-1] + self.nu, self.nx[-1]]
         self.nw = int(self.sizes.sum())
+        self._expected = {  # entries of every argument of solve()
+            "h": int(np.sum(self.sizes ** 2)), "q": self.nw,
+            "ab": int(np.sum(self.nx[1:] * self.sizes[:-1])), "b": int(self.nx[1:].sum()),
+            "c": self.nc * int(self.nx[-1]), "d": self.nc, "lb": self.nw, "ub": self.nw}
         self.rho, self.eq_tol, self.kkt_tol = float(rho), float(eq_tol), float(kkt_tol)
         self.max_outer, self.max_passes = int(max_outer), int(max_passes)
         self._lib = _library()
         self._work = np.zeros(self._lib.stage_qp_workspace(
-            self.horizon, self.nx.ctypes.data, self.nu.ctypes.data))
+            self.horizon, self.nx.ctypes.data, self.nu.ctypes.data, self.nc))
         self.z = np.zeros(self.nw)
         self.active = np.zeros(self.nw, dtype=np.int8)  # −1 lower, +1 upper, 0 free
         self.lam = np.zeros(self.nw)
@@ -130,24 +135,26 @@ class StageQP:
 
     def solve(self, h, q, ab, b, c, d, lb, ub) -> StageQPResult:
         """h: H blocks, ab: [A_j B_j] blocks (each column-major, concatenated), q, b, d, lb,
-        ub: vectors; c: C column-major. Arrays must be float64 and contiguous."""
+        ub: vectors (±inf for no bound); c: C column-major. Arrays must be contiguous float64
+        of the sizes the structure implies; the returned ``z`` is a copy."""
+        args = {"h": h, "q": q, "ab": ab, "b": b, "c": c, "d": d, "lb": lb, "ub": ub}
+        for name, a in args.items():
+            if not (isinstance(a, np.ndarray) and a.dtype == np.float64
+                    and a.flags.c_contiguous and a.size == self._expected[name]):
+                raise ValueError(f"{name} must be a contiguous float64 array of "
+                                 f"{self._expected[name]} entries")
+        p = {name: a.ctypes.data for name, a in args.items()}
         active, lam, lam_c = self.active.copy(), self.lam.copy(), self.lam_c.copy()
         info = self._lib.stage_qp_solve(
-            ctypes.c_int(self.horizon), self.nx.ctypes.data, self.nu.ctypes.data,
-            _ptr(h), _ptr(q), _ptr(ab), _ptr(b), ctypes.c_int(self.nc), _ptr(c), _ptr(d),
-            _ptr(lb), _ptr(ub), active.ctypes.data, lam.ctypes.data, lam_c.ctypes.data,
-            ctypes.c_double(self.rho), ctypes.c_double(self.eq_tol),
-            ctypes.c_double(self.kkt_tol), ctypes.c_int(self.max_outer),
-            ctypes.c_int(self.max_passes), self._work.ctypes.data,
-            ctypes.c_size_t(self._work.size), self.z.ctypes.data, ctypes.byref(self._stats))
+            self.horizon, self.nx.ctypes.data, self.nu.ctypes.data, p["h"], p["q"], p["ab"],
+            p["b"], self.nc, p["c"], p["d"], p["lb"], p["ub"], active.ctypes.data,
+            lam.ctypes.data, lam_c.ctypes.data,
+            self.rho, self.eq_tol, self.kkt_tol, self.max_outer, self.max_passes,
+            self._work.ctypes.data, self._work.size, self.z.ctypes.data,
+            ctypes.byref(self._stats))
         s = self._stats
         if info == 0:  # keep the active set for the next call only when it is right
             self.active[:], self.lam[:], self.lam_c[:] = active, lam, lam_c
         return StageQPResult(self.z.copy(), STATUS.get(info, f"error {info}"), s.outer,
                              s.passes, s.changes, s.n_active)
 
-
-def _ptr(a: np.ndarray):
-    if a.dtype != np.float64 or not a.flags.c_contiguous:
-        raise ValueError("QP data must be contiguous float64 arrays")
-    return a.ctypes.data

@@ -1,0 +1,172 @@
+"""The Riccati active-set QP solver against dense solutions of the same QPs."""
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from paper_repro.stage_qp import StageQP
+
+
+def _random_qp(rng, nx, nu, nc, box=True):
+    """A random stage-structured QP with a strictly feasible point z* inside the bounds."""
+    n = len(nu)
+    sizes = [nx[j] + nu[j] for j in range(n)] + [nx[n]]
+    h = []
+    for s in sizes:
+        m = rng.normal(size=(s, s))
+        h.append(m.T @ m + 0.1 * np.eye(s))
+    ab = [rng.normal(scale=0.6, size=(nx[j + 1], sizes[j])) for j in range(n)]
+    b = [rng.normal(scale=0.1, size=nx[j + 1]) for j in range(n)]
+    z_star = [rng.uniform(-0.5, 0.5, size=sizes[0])]
+    for j in range(n):
+        x1 = ab[j] @ z_star[j] + b[j]
+        z_star.append(np.r_[x1, rng.uniform(-0.5, 0.5, size=sizes[j + 1] - nx[j + 1])])
+    z_star = np.concatenate(z_star)
+    c = rng.normal(size=(nc, nx[n]))
+    d = c @ z_star[-nx[n]:]
+    q = rng.normal(scale=20.0, size=len(z_star))  # pulls the optimum onto many bounds
+    lb, ub = np.full(len(z_star), -np.inf), np.full(len(z_star), np.inf)
+    if box:
+        lb = z_star - rng.uniform(0.2, 1.0, size=len(z_star))
+        ub = z_star + rng.uniform(0.2, 1.0, size=len(z_star))
+    data = {"h": np.concatenate([m.ravel(order="F") for m in h]), "q": q,
+            "ab": np.concatenate([m.ravel(order="F") for m in ab]), "b": np.concatenate(b),
+            "c": c.ravel(order="F"), "d": d, "lb": lb, "ub": ub}
+    return data, _dense(h, ab, b, c, d, sizes, nx)
+
+
+def _dense(h, ab, b, c, d, sizes, nx):
+    """The same QP as dense matrices: H, equality rows A w = rhs."""
+    n = len(ab)
+    off = np.r_[0, np.cumsum(sizes)]
+    nw = off[-1]
+    big_h = np.zeros((nw, nw))
+    for j, m in enumerate(h):
+        big_h[off[j]:off[j + 1], off[j]:off[j + 1]] = m
+    rows, rhs = [], []
+    for j in range(n):
+        r = np.zeros((nx[j + 1], nw))
+        r[:, off[j]:off[j + 1]] = ab[j]
+        r[:, off[j + 1]:off[j + 1] + nx[j + 1]] -= np.eye(nx[j + 1])
+        rows.append(r)
+        rhs.append(-b[j])
+    r = np.zeros((len(d), nw))
+    r[:, off[n]:] = c
+    rows.append(r)
+    rhs.append(d)
+    return big_h, np.vstack(rows), np.concatenate(rhs)
+
+
+DIMS = [([3, 4, 4, 4, 4, 4, 4], [2, 2, 2, 2, 2, 2], 2),
+        ([4] + [9] * 10, [4] * 10, 6)]  # x_0 of another size, as in the NMPC (a_0 only)
+
+
+@pytest.mark.parametrize("nx,nu,nc", DIMS)
+def test_without_bounds_it_solves_the_kkt_system(nx, nu, nc):
+    rng = np.random.default_rng(0)
+    data, (big_h, a_eq, rhs) = _random_qp(rng, nx, nu, nc, box=False)
+    qp = StageQP(nx, nu, nc)
+    res = qp.solve(**data)
+    assert res.success and res.n_active == 0 and res.outer == 1
+    nw, m = len(data["q"]), len(rhs)
+    kkt = np.block([[big_h, a_eq.T], [a_eq, np.zeros((m, m))]])
+    exact = np.linalg.solve(kkt, np.r_[-data["q"], rhs])[:nw]
+    np.testing.assert_allclose(res.z, exact, atol=1e-8)
+
+
+def _reference(big_h, a_eq, rhs, data):
+    """Solution and bound multipliers from qpOASES (dense)."""
+    solver = ca.conic("ref", "qpoases", {"h": ca.DM(big_h).sparsity(),
+                                         "a": ca.DM(a_eq).sparsity()},
+                      {"printLevel": "none", "error_on_fail": True})
+    sol = solver(h=big_h, g=data["q"], a=a_eq, lba=rhs, uba=rhs, lbx=data["lb"],
+                 ubx=data["ub"])
+    return np.asarray(sol["x"]).ravel(), np.asarray(sol["lam_x"]).ravel()
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("nx,nu,nc", DIMS)
+def test_from_a_cold_start_it_matches_a_dense_active_set_solver(nx, nu, nc, seed):
+    """No guess at all: the dual active-set steps alone find the optimum, with a dozen or
+    so bounds binding (some of them dependent on the terminal equality)."""
+    rng = np.random.default_rng(seed)
+    data, (big_h, a_eq, rhs) = _random_qp(rng, nx, nu, nc)
+    qp = StageQP(nx, nu, nc, max_outer=500)
+    res = qp.solve(**data)
+    assert res.success, res.status
+    z_ref, _ = _reference(big_h, a_eq, rhs, data)
+    assert res.n_active >= 5  # the test means something: bounds do bind
+    np.testing.assert_allclose(res.z, z_ref, atol=1e-6)
+    # And the solution is feasible on its own.
+    np.testing.assert_allclose(a_eq @ res.z, rhs, atol=1e-8)
+    assert np.all(res.z >= data["lb"] - 1e-8) and np.all(res.z <= data["ub"] + 1e-8)
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("nx,nu,nc", DIMS)
+def test_a_wrong_guess_is_repaired(nx, nu, nc, seed):
+    """The guess misses two binding bounds and holds one that does not bind."""
+    rng = np.random.default_rng(seed)
+    data, (big_h, a_eq, rhs) = _random_qp(rng, nx, nu, nc)
+    z_ref, lam_ref = _reference(big_h, a_eq, rhs, data)
+    qp = StageQP(nx, nu, nc, max_outer=500)
+    qp.seed(z_ref, data["lb"], data["ub"], lam_ref)
+    held = np.flatnonzero(qp.active)
+    qp.active[rng.choice(held, size=2, replace=False)] = 0
+    qp.active[rng.choice(np.flatnonzero(qp.active == 0))] = -1
+    res = qp.solve(**data)
+    assert res.success, res.status
+    assert res.changes >= 1
+    np.testing.assert_allclose(res.z, z_ref, atol=1e-6)
+
+
+def test_warm_start_reuses_the_active_set():
+    nx, nu, nc = DIMS[1]
+    data, _ = _random_qp(np.random.default_rng(3), nx, nu, nc)
+    qp = StageQP(nx, nu, nc, max_outer=500)
+    cold = qp.solve(**data)
+    assert cold.success and cold.outer > 1
+    # A slightly perturbed QP, as from one sampling instant to the next.
+    data["q"] = data["q"] + 1e-3 * np.random.default_rng(4).normal(size=data["q"].shape)
+    warm = qp.solve(**data)
+    assert warm.success and warm.outer == 1 and warm.changes == 0
+    np.testing.assert_allclose(warm.z, cold.z, atol=1e-2)
+
+
+def test_seeding_with_a_solution_needs_one_factorisation():
+    nx, nu, nc = DIMS[0]
+    data, (big_h, a_eq, rhs) = _random_qp(np.random.default_rng(5), nx, nu, nc)
+    z_ref, lam_ref = _reference(big_h, a_eq, rhs, data)
+    qp = StageQP(nx, nu, nc)
+    qp.seed(z_ref, data["lb"], data["ub"], lam_ref)
+    res = qp.solve(**data)
+    assert res.success and res.outer == 1
+    np.testing.assert_allclose(res.z, z_ref, atol=1e-6)
+
+
+def test_an_infeasible_qp_is_reported_and_the_active_set_kept():
+    nx, nu, nc = DIMS[0]
+    data, _ = _random_qp(np.random.default_rng(6), nx, nu, nc)
+    qp = StageQP(nx, nu, nc, max_outer=500)
+    assert qp.solve(**data).success
+    kept = qp.active.copy()
+    # Every input pinned to a narrow band while C x_N = d asks for something far away.
+    data["lb"], data["ub"] = data["lb"] * 0.0 - 0.01, data["ub"] * 0.0 + 0.01
+    data["d"] = data["d"] + 100.0
+    res = qp.solve(**data)
+    assert not res.success
+    np.testing.assert_array_equal(qp.active, kept)
+
+
+def test_bad_dimensions_are_rejected():
+    with pytest.raises(ValueError, match="nx"):
+        StageQP([3, 3], [2, 2], 1)
+    with pytest.raises(ValueError, match="nx"):
+        StageQP([0, 3, 3], [2, 2], 1)
+    with pytest.raises(ValueError, match="rho"):
+        StageQP([3, 3, 3], [2, 2], 1, rho=0.0)
+    qp = StageQP([3, 3, 3], [2, 2], 1)
+    with pytest.raises(ValueError, match="h must be a contiguous float64 array of 59"):
+        qp.solve(*(np.zeros(4),) * 8)
+    with pytest.raises(ValueError, match="float64"):
+        qp.solve(*(np.zeros(59, dtype=np.float32),) * 8)
