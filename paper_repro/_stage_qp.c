@@ -321,7 +321,18 @@ int stage_qp_solve(int n, const int *nx, const int *nu, const double *h, const d
         P[j] = wp; wp += (size_t)nx[j] * nx[j];
         M[j] = wp; wp += (size_t)s * s;
     }
-    problem pr = {n, nc, nw, max_passes, nx, nu, h, q, ab, b, c, d, rho, eq_tol, P, M,
+    /* rho relative to the largest curvature: the multiplier updates contract by about
+     * |H| / rho per pass, and a penalty Hessian can reach 1e6 here. */
+    double hmax = 1.0;
+    {
+        const double *hj = h;
+        for (int j = 0; j <= n; ++j) {
+            int s = nx[j] + (j < n ? nu[j] : 0);
+            for (int i = 0; i < s; ++i) hmax = fmax(hmax, fabs(hj[i + i * s]));
+            hj += (size_t)s * s;
+        }
+    }
+    problem pr = {n, nc, nw, max_passes, nx, nu, h, q, ab, b, c, d, rho * hmax, eq_tol, P, M,
                   NULL, NULL, NULL, NULL, NULL};
     pr.g = wp; wp += nw;
     pr.pv = wp; wp += nw;
@@ -347,7 +358,10 @@ int stage_qp_solve(int n, const int *nx, const int *nu, const double *h, const d
         if (++st->outer > max_outer) return 1;
         info = solve_eqp(&pr, act, target, lam, lamc, z, st);
         if (info == 2) {  /* an inconsistent guess: start from no fixed bound */
-            for (int i = 0; i < nw; ++i) { st->changes += act[i] != 0; act[i] = 0; lam[i] = 0.0; }
+            int held = 0;
+            for (int i = 0; i < nw; ++i) { held += act[i] != 0; act[i] = 0; lam[i] = 0.0; }
+            if (!held) return 2;  /* C x_N = d alone cannot be met */
+            st->changes += held;
             for (int k = 0; k < nc; ++k) lamc[k] = 0.0;
             continue;
         }

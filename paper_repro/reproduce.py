@@ -408,7 +408,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--solver", choices=("rti", "reference"), default=None,
                         help="NMPC solver of the runs (default: the config's, "
                              f"{Config().nmpc.solver!r}; 'reference' is IPOPT as in the paper, "
-                             "about 20x slower)")
+                             "about 100x slower)")
     parser.add_argument("--notebooks", nargs="+", metavar="NAME", default=None,
                         choices=[nb.name for nb in NOTEBOOKS],
                         help="execute only these notebooks (default: all)")

@@ -85,7 +85,7 @@ class StageQP:
     max_passes : multiplier updates per factorisation before giving up.
     """
 
-    def __init__(self, nx, nu, nc: int, rho: float = 1e6, eq_tol: float = 1e-10,
+    def __init__(self, nx, nu, nc: int, rho: float = 1e4, eq_tol: float = 1e-10,
                  kkt_tol: float = 1e-9, max_outer: int = 8, max_passes: int = 30):
         self.nx = np.ascontiguousarray(nx, dtype=np.intc)
         self.nu = np.ascontiguousarray(nu, dtype=np.intc)

@@ -77,6 +77,49 @@ def test_fast_path_tracks_the_reference_in_closed_loop(reference, scene):
     assert abs(fast.clearance.min() - ref.clearance.min()) < 0.01
 
 
+def _qp_config(qp_solver):
+    return dataclasses.replace(_config(), nmpc=dataclasses.replace(SMALL, qp_solver=qp_solver))
+
+
+def test_riccati_and_hpipm_give_the_same_closed_loop(scene):
+    """The two QP solvers return the same QP solutions, so the closed loops coincide; the
+    warm-started Riccati solver handles (nearly) every QP itself, without HPIPM."""
+    near = dataclasses.replace(scene, start=(-18.6, 0.0, 2.0))
+    runs = {name: simulate(_qp_config(name), max_steps=300, progress=False, scene=near)
+            for name in ("riccati", "hpipm")}
+    assert runs["riccati"].visible_points.max() > 0
+    np.testing.assert_allclose(runs["riccati"].x, runs["hpipm"].x, atol=1e-6)
+    counts = runs["riccati"].meta["qp_counts"]
+    assert counts["failed"] == 0 and counts["riccati"] >= 0.95 * 300
+    assert runs["hpipm"].meta["qp_counts"] == {"riccati": 0, "hpipm": 300, "failed": 0}
+
+
+def test_when_the_riccati_solver_gives_up_hpipm_takes_over(scene):
+    """With a single EQP allowed, the cold first QP (rate bounds binding, none guessed) is
+    left to HPIPM, whose active set then seeds the Riccati solver: same trajectory."""
+    ctl = make_controller(_qp_config("riccati"))
+    ctl._riccati.max_outer = 1
+    fast = simulate(_qp_config("riccati"), controller=ctl, max_steps=60, progress=False)
+    ref = simulate(_qp_config("hpipm"), max_steps=60, progress=False)
+    counts = fast.meta["qp_counts"]
+    assert counts["hpipm"] >= 1 and counts["riccati"] >= 1 and counts["failed"] == 0
+    np.testing.assert_allclose(fast.x, ref.x, atol=1e-6)
+
+
+def test_without_compiled_code_the_same_step_comes_out(scene):
+    """compile=False (no C compiler): CasADi's virtual machine and HPIPM, same SQP step."""
+    x0, _ = equilibrium([-18.3, 0.2, 2.0])
+    x0[6] = 0.3
+    visible = Lidar(scene.clouds).scan(x0[:3])
+    plain = RealTimeNMPC(_config(), compile=False)
+    assert plain.qp_solver == "hpipm"
+    a = plain.solve(x0, scene.targets[0], visible)
+    b = make_controller(_config()).solve(x0, scene.targets[0], visible)
+    assert a.success and b.success
+    np.testing.assert_allclose(a.u, b.u, atol=1e-6)
+    np.testing.assert_allclose(a.x, b.x, atol=1e-8)
+
+
 def test_euclidean_metric_runs_on_the_fast_path():
     result = simulate(_config("euclidean"), max_steps=120, progress=False)
     assert result.steps == 120
@@ -97,5 +140,9 @@ def test_qp_failure_is_reported_not_raised(scene):
 def test_bad_options_are_rejected():
     with pytest.raises(ValueError, match="max_iter"):
         RealTimeNMPC(_config(), max_iter=0)
+    with pytest.raises(ValueError, match="qp_solver"):
+        RealTimeNMPC(_config(), qp_solver="osqp")
+    with pytest.raises(ValueError, match="qp_solver"):
+        NMPCParams(qp_solver="osqp")
     with pytest.raises(ValueError, match="x0"):
         RealTimeNMPC(_config()).solve(np.zeros(3), np.zeros(3))
