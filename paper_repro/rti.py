@@ -26,6 +26,7 @@ to ``max_iter`` full SQP steps per sampling instant and stops early when the ste
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import casadi as ca
@@ -54,6 +55,10 @@ class RealTimeNMPC:
         every QP. Both return the same QP solution (to their tolerances).
     compile : build the linearisation as C code (cached). ``False`` uses CasADi's virtual
         machine (slower, no compiler needed) and HPIPM.
+    capacities : smaller LiDAR capacities (points per region slot) compiled besides the
+        config's ``points_per_region``; each scan uses the smallest that holds it. Same QP,
+        less work: at 16 visible points the linearisation takes 0.17 ms at capacity 48 against
+        0.6 ms at 120 (``()``: the config's capacity only).
 
     Attributes
     ----------
@@ -62,12 +67,15 @@ class RealTimeNMPC:
     """
 
     def __init__(self, config: Config | None = None, max_iter: int = 1, step_tol: float = 1e-6,
-                 qp_solver: str = "riccati", compile: bool = True):
+                 qp_solver: str = "riccati", compile: bool = True,
+                 capacities: tuple[int, ...] = (16, 48)):
         self.config = cfg = config or Config()
         if not (isinstance(max_iter, int) and max_iter >= 1):
             raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
         if not step_tol > 0:
             raise ValueError(f"step_tol must be > 0, got {step_tol!r}")
+        if not all(isinstance(c, int) and c >= 1 for c in capacities):
+            raise ValueError(f"capacities must be integers >= 1, got {capacities!r}")
         if qp_solver not in ("riccati", "hpipm"):
             raise ValueError(f"qp_solver must be 'riccati' or 'hpipm', got {qp_solver!r}")
         self.max_iter, self.step_tol = max_iter, step_tol
@@ -82,8 +90,18 @@ class RealTimeNMPC:
         native = compile and compiler() is not None
         self.qp_solver = qp_solver if native else "hpipm"
         # The linearisation writes straight into fixed buffers (NativeFunction); without a
-        # compiler it runs in CasADi's virtual machine.
-        self._lin = NativeFunction(fn) if native else fn
+        # compiler it runs in CasADi's virtual machine. Compiled, it comes in several LiDAR
+        # capacities: a scan uses the smallest that holds it. Padding contributes exactly 0,
+        # so every capacity gives the same QP; the small ones skip the padding's arithmetic.
+        self._lins = [(p.points_per_region, cfg, fn)]
+        if native:
+            self._lins = []
+            for cap in sorted({c for c in capacities if c < p.points_per_region}
+                              | {p.points_per_region}):
+                c_cfg = dataclasses.replace(
+                    cfg, nmpc=dataclasses.replace(p, points_per_region=cap))
+                c_fn = fn if cap == p.points_per_region else _linearisation(c_cfg)
+                self._lins.append((cap, c_cfg, NativeFunction(c_fn)))
         self._riccati = (StageQP(self._nz, [N_INPUTS] * self.horizon, N_STATES)
                          if self.qp_solver == "riccati" else None)
         self._hpipm = ca.conic("rti_qp", "hpipm", {"h": self._h_sp, "a": self._a_sp},
@@ -121,7 +139,8 @@ class RealTimeNMPC:
         start = time.perf_counter()  # solve_time includes packing the scan: the whole call
         x0 = _as_vector("x0", x0, N_STATES)
         target = _as_vector("target", target, 3)
-        params = np.concatenate([target, self.obstacle_parameters(visible, x0[:3])])
+        lin, lin_cfg = self._linearisation_for(visible)
+        params = np.concatenate([target, pack_scan(visible, x0[:3], lin_cfg)])
         guess = previous.reanchored(x0) if previous is not None else self.hover_guess(x0)
         X = np.array(guess.x, dtype=float)  # (N+1, 12)
         X[0] = x0
@@ -130,7 +149,7 @@ class RealTimeNMPC:
 
         success, status, it = False, "iterated", 0
         for it in range(1, self.max_iter + 1):  # noqa: B007 - `it` is reported below
-            step, ok = self._sqp_step(x0, X, U, a, params)
+            step, ok = self._sqp_step(lin, x0, X, U, a, params)
             if not ok:
                 success, status = False, "qp_failed"
                 break
@@ -165,24 +184,32 @@ class RealTimeNMPC:
         x[:3], x[5] = a[:3], a[3]
         return x
 
-    def _linearise(self, x0, X, U, a, params):
+    def _linearisation_for(self, visible):
+        """The compiled linearisation of the smallest capacity that holds the scan."""
+        need = max((len(v) for v in visible), default=0)
+        for cap, cfg, fn in self._lins:
+            if need <= cap:
+                return fn, cfg
+        return self._lins[-1][2], self._lins[-1][1]  # pack_scan keeps the nearest points
+
+    def _linearise(self, lin, x0, X, U, a, params):
         """Every stage's QP blocks at this iterate: h, q, j ([A_j B_j] then C), gap, eq."""
         A = np.tile(a[:, None], (1, self.horizon + 1))
-        if isinstance(self._lin, NativeFunction):
-            ins = self._lin.inputs
+        if isinstance(lin, NativeFunction):
+            ins = lin.inputs
             ins[0][:, 0], ins[1][:], ins[2][:], ins[3][:], ins[4][:, 0] = \
                 x0, X[1:].T, U.T, A, params
-            self._lin()
-            return self._lin.outputs
-        return [np.asarray(v).ravel() for v in self._lin(x0, X[1:].T, U.T, A, params)]
+            lin()
+            return lin.outputs
+        return [np.asarray(v).ravel() for v in lin(x0, X[1:].T, U.T, A, params)]
 
-    def _sqp_step(self, x0, X, U, a, params):
+    def _sqp_step(self, lin, x0, X, U, a, params):
         """One Gauss-Newton SQP step: linearise every stage, solve the QP."""
         w = np.zeros(self._nw)  # the iterate; s entries are 0 and unbounded
         w[self._iw_x] = X[1:]
         w[self._iw_u] = U
         w[self._iw_a] = a
-        h, q, j, gap, eq = self._linearise(x0, X, U, a, params)
+        h, q, j, gap, eq = self._linearise(lin, x0, X, U, a, params)
         lb, ub = self._lbw - w, self._ubw - w
         dw = None
         if self._riccati is not None:

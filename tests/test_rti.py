@@ -120,6 +120,27 @@ def test_without_compiled_code_the_same_step_comes_out(scene):
     np.testing.assert_allclose(a.x, b.x, atol=1e-8)
 
 
+@pytest.mark.parametrize("metric", ["smooth", "euclidean"])
+def test_a_smaller_lidar_capacity_gives_the_same_step(scene, metric):
+    """A scan of a few points goes to the capacity-16 linearisation: padding contributes exactly
+    0, so the step equals the one of the full capacity (48 here)."""
+    x0, _ = equilibrium([-18.3, 0.2, 2.0])
+    x0[6] = 0.3
+    visible = Lidar(scene.clouds).scan(x0[:3])
+    counts = [len(v) for v in visible]
+    assert 0 < max(counts) <= 16
+    ladder = RealTimeNMPC(_config(metric))
+    full = RealTimeNMPC(_config(metric), capacities=())
+    assert [cap for cap, _, _ in ladder._lins] == [16, 48]
+    assert ladder._linearisation_for(visible)[1].nmpc.points_per_region == 16
+    a = ladder.solve(x0, scene.targets[0], visible)
+    b = full.solve(x0, scene.targets[0], visible)
+    np.testing.assert_allclose(a.u, b.u, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="capacities"):
+        RealTimeNMPC(_config(), capacities=(0,))
+
+
 def test_euclidean_metric_runs_on_the_fast_path():
     result = simulate(_config("euclidean"), max_steps=120, progress=False)
     assert result.steps == 120
