@@ -59,12 +59,20 @@ def build_library(name: str, source: bytes, key_extra: bytes = b"") -> Path:
     key = digest.hexdigest()[:16]
     lib = cache_dir() / f"{name}_{key}.so"
     if not lib.exists():
+        # Built under a private name in the cache folder, then renamed: the rename is atomic,
+        # so processes of a parallel sweep never load a half-written library.
+        out = lib.with_name(f".{lib.name}.{os.getpid()}.tmp")
         with tempfile.TemporaryDirectory() as tmp:
-            src, out = Path(tmp) / f"{name}.c", Path(tmp) / lib.name
+            src = Path(tmp) / f"{name}.c"
             src.write_bytes(source)
-            subprocess.run([cc, *FLAGS, str(src), "-o", str(out), "-lm"], check=True,
-                           capture_output=True)
-            shutil.move(str(out), lib)  # atomic within one file system: no half-written .so
+            try:
+                result = subprocess.run([cc, *FLAGS, str(src), "-o", str(out), "-lm"],
+                                        capture_output=True, text=True)
+                if result.returncode:
+                    raise RuntimeError(f"{cc} failed to build {name}:\n{result.stderr}")
+                os.replace(out, lib)
+            finally:
+                out.unlink(missing_ok=True)
     return lib
 
 
