@@ -194,7 +194,7 @@ def plot_solve_times(results, ax=None, max_points: int = MAX_POINTS):
         ms = np.sort(np.asarray(r.solve_time) * 1e3)
         idx = stride_indices(len(ms), max_points)
         ax.step(ms[idx], (idx + 1) / len(ms), where="post", ls=ls,
-                label=f"{r.config.distance.metric} (median {np.median(ms):.0f} ms)")
+                label=f"{r.config.distance.metric} (median {np.median(ms):.2g} ms)")
     ax.set_xscale("log")
     ax.set_xlabel("solve time [ms]")
     ax.set_ylabel("fraction of steps")

@@ -186,7 +186,7 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
             bar.update(1)
             if k % 50 == 0:
                 bar.set_postfix(target=target_index, error=f"{error:.2f} m",
-                                solve=f"{sol.solve_time * 1e3:.0f} ms")
+                                solve=f"{sol.solve_time * 1e3:.2g} ms")
         if error < sim.tolerance:
             reached[target_index] = k + 1
             target_index += 1

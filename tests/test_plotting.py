@@ -194,3 +194,12 @@ def test_animation_writes_a_gif_with_the_requested_frames(tmp_path, result, scen
         assert im.format == "GIF" and im.n_frames == 3
     with pytest.raises(ValueError, match="frames"):
         P.animate_flight(result, scene, tmp_path / "x.gif", frames=0)
+
+
+@pytest.mark.parametrize("seconds, shown", [(0.08, "80 ms"), (6.7e-4, "0.67 ms")])
+def test_solve_time_legend_shows_sub_millisecond_medians(result, seconds, shown):
+    fast = dataclasses.replace(result, solve_time=np.full(len(result.solve_time), seconds))
+    fig = P.plot_solve_times([fast])
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert labels == [f"smooth (median {shown})"]
+    plt.close(fig)
