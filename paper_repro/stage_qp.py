@@ -8,19 +8,24 @@ The QP of every real-time iteration has the optimal-control structure
 with x_0 free. Between two sampling instants the set of bounds that hold with equality barely
 changes (the plan is re-anchored, not re-planned), so an interior-point method, which
 rediscovers it in about a dozen Riccati factorisations, does more work than needed. This
-solver keeps the active set and its multipliers from the previous call and, per iteration,
+solver keeps the active set and its multipliers from the previous call. Every iterate solves
+the equality-constrained QP with the active bounds fixed:
 
-1. fixes the active bounds and the terminal equality with an augmented Lagrangian
-   (weight ``rho``): one Riccati factorisation, then cheap vector passes that update the
-   multipliers until the equalities hold to ``eq_tol``;
-2. checks the KKT conditions of the bounds: a violated bound enters the set, a bound whose
-   multiplier has the wrong sign leaves it (the primal-dual active-set method of
-   Hintermüller, Ito and Kunisch, 2002). No change means the QP is solved.
+* one Riccati factorisation; the fixed bounds and C x_N = d enter by an augmented Lagrangian
+  (weight ``rho`` times the largest Hessian diagonal), whose multipliers are refined by cheap
+  vector passes until the equalities hold to ``eq_tol``.
 
-The result is the QP's exact solution (to the tolerances), not an approximation; when the
-active set is not found within ``max_outer`` iterations the call reports failure and the
-caller falls back on an interior-point solver. The C source is ``_stage_qp.c``; it is
-compiled once per machine (see :mod:`paper_repro._native`).
+The guess is first made dual feasible (bounds whose multiplier has the wrong sign are
+released), then repaired by dual active-set steps (Goldfarb and Idnani, 1983): the most
+violated bound is moved to its bound along the affine solution path, releasing any fixed bound
+whose multiplier reaches zero first; a bound that depends on the fixed ones gets a pure dual
+step. For a strictly convex QP this terminates from any start, a cold one included; with the
+previous instant's set it usually takes a single factorisation.
+
+The result is the QP's exact solution (to the tolerances), not an approximation. When
+``max_outer`` equality-QP solves do not suffice the call reports failure, and the caller falls
+back on an interior-point solver. The C source is ``_stage_qp.c``; it is compiled once per
+machine (see :mod:`paper_repro._native`).
 """
 
 from __future__ import annotations
@@ -34,7 +39,7 @@ import numpy as np
 from ._native import build_library
 
 _D = ctypes.POINTER(ctypes.c_double)
-STATUS = {0: "solved", 1: "active_set_not_found", 2: "equalities_not_met",
+STATUS = {0: "solved", 1: "active_set_not_found", 2: "infeasible_or_inconsistent",
           3: "not_positive_definite", 4: "workspace"}
 
 
@@ -78,11 +83,13 @@ class StageQP:
     nx : (N+1,) state sizes, x_0 included (x_0 is a free variable).
     nu : (N,) input sizes.
     nc : rows of the terminal equality C x_N = d.
-    rho : augmented-Lagrangian weight of the fixed bounds and the terminal equality.
+    rho : augmented-Lagrangian weight of the fixed bounds and the terminal equality, relative
+        to the largest diagonal entry of H (at least 1).
     eq_tol : the fixed bounds and C x_N = d hold to this (absolute).
     kkt_tol : tolerance of the bound and multiplier-sign checks.
-    max_outer : active-set iterations before giving up.
-    max_passes : multiplier updates per factorisation before giving up.
+    max_outer : equality-QP solves (factorisations) before giving up.
+    max_passes : multiplier updates per factorisation; a set that cannot meet the equalities
+        within them counts as inconsistent.
     """
 
     def __init__(self, nx, nu, nc: int, rho: float = 1e4, eq_tol: float = 1e-10,
@@ -97,6 +104,10 @@ class StageQP:
             raise ValueError("nx must be >= 1 and nu >= 0 at every stage")
         if not (rho > 0 and eq_tol > 0 and kkt_tol > 0):
             raise ValueError("rho, eq_tol and kkt_tol must be > 0")
+        for name, v, low in (("nc", nc, 0), ("max_outer", max_outer, 1),
+                             ("max_passes", max_passes, 1)):
+            if not (isinstance(v, (int, np.integer)) and v >= low):
+                raise ValueError(f"{name} must be an integer >= {low}, got {v!r}")
         self.nc = int(nc)
         self.sizes = np.r_[self.nx[:-1] + self.nu, self.nx[-1]]
         self.nw = int(self.sizes.sum())

@@ -165,6 +165,10 @@ def test_bad_dimensions_are_rejected():
         StageQP([0, 3, 3], [2, 2], 1)
     with pytest.raises(ValueError, match="rho"):
         StageQP([3, 3, 3], [2, 2], 1, rho=0.0)
+    with pytest.raises(ValueError, match="nc must be an integer >= 0"):
+        StageQP([3, 3, 3], [2, 2], -1)
+    with pytest.raises(ValueError, match="max_outer"):
+        StageQP([3, 3, 3], [2, 2], 1, max_outer=0)
     qp = StageQP([3, 3, 3], [2, 2], 1)
     with pytest.raises(ValueError, match="h must be a contiguous float64 array of 59"):
         qp.solve(*(np.zeros(4),) * 8)
