@@ -148,6 +148,9 @@ class TrackingNMPC:
         return NMPCSolution(u, x, x_a, u_a, success, status, int(stats.get("iter_count", -1)),
                             elapsed, float(sol["f"]))
 
+    def reset(self) -> None:
+        """Nothing to forget: each IPOPT solve starts from the guess it is given."""
+
     def hover_guess(self, x0) -> NMPCSolution:
         """Initial guess: hover at the current position and yaw for the whole horizon."""
         x_a, u_a = equilibrium(np.asarray(x0)[:3], float(np.asarray(x0)[5]),

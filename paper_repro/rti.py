@@ -167,6 +167,13 @@ class RealTimeNMPC:
         return NMPCSolution(U, X, x_a, self._hover.copy(), bool(success and finite), status, it,
                             elapsed, np.nan)
 
+    def reset(self) -> None:
+        """Forget everything carried from one solve to the next (the Riccati solver's active
+        set and multipliers), so that a new flight starts from a clean slate and is
+        bit-identical whether this controller is new or reused. ``qp_counts`` keeps counting."""
+        if self._riccati is not None:
+            self._riccati.reset()
+
     def hover_guess(self, x0) -> NMPCSolution:
         x0 = np.asarray(x0, float)
         x_a = self._x_eq(np.array([x0[0], x0[1], x0[2], x0[5]]))

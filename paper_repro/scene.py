@@ -9,6 +9,8 @@ sequence (``scipy.stats.qmc.Halton``) at a given density, as in Section V. A
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import math
 from dataclasses import dataclass, field
 
@@ -128,7 +130,11 @@ class Scene:
     start : (3,) initial position, m.
     targets : (k, 3) set-points y_t, m, visited in sequence.
     seed : base seed of the Halton clouds (region i uses ``seed + i``).
-    clouds : tuple of (m_i, 3) arrays, computed from the above at construction.
+    finish : ``None``, or a finish line ``(point, direction)`` (each (3,), m and unit vector)
+        for a *passage*: the run ends once ``(y − point)·direction ≥ 0``.
+    clouds : tuple of (m_i, 3) arrays, m. Sampled from the regions when omitted; given when a
+        scene is rebuilt from a saved result, so that a run redraws against its own points
+        whatever the generators do later.
     """
 
     name: str
@@ -136,17 +142,34 @@ class Scene:
     start: tuple
     targets: tuple
     seed: int = 7
-    clouds: tuple = field(init=False, repr=False, compare=False)
+    finish: tuple | None = None
+    clouds: tuple | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self):
         start = np.asarray(self.start, float)
-        targets = np.atleast_2d(np.asarray(self.targets, float))
+        targets = np.asarray(self.targets, float)
+        if targets.ndim == 1:
+            targets = targets[None]
         for label, pts in (("start", start[None]), ("targets", targets)):
-            if pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
+            if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
                 raise ValueError(f"{label} must be finite 3-D positions, got shape {pts.shape}")
-        clouds = tuple(halton_cloud(r.shape, r.density, self.seed + i)
-                       for i, r in enumerate(self.regions))
-        for r, c in zip(self.regions, clouds):
+        if len(targets) == 0:
+            raise ValueError("targets must hold at least one 3-D position")
+        if self.finish is not None:
+            point, direction = (np.asarray(v, float) for v in self.finish)
+            if point.shape != (3,) or direction.shape != (3,) or not (
+                    np.all(np.isfinite(point)) and np.isclose(np.linalg.norm(direction), 1.0)):
+                raise ValueError("finish must be (point (3,), unit direction (3,)), got "
+                                 f"{self.finish!r}")
+        if self.clouds is None:
+            clouds = tuple(halton_cloud(r.shape, r.density, self.seed + i)
+                           for i, r in enumerate(self.regions))
+        else:
+            if len(self.clouds) != len(self.regions):
+                raise ValueError(f"clouds must hold one (m, 3) array per region "
+                                 f"({len(self.regions)}), got {len(self.clouds)}")
+            clouds = tuple(_cloud_array(f"clouds[{i}]", c) for i, c in enumerate(self.clouds))
+        for r, c in zip(self.regions, clouds, strict=True):
             if len(c) == 0:
                 raise ValueError(f"region {r.name!r} holds no point at density {r.density}")
         object.__setattr__(self, "clouds", clouds)
@@ -155,6 +178,79 @@ class Scene:
     def all_points(self) -> np.ndarray:
         """(Σm_i, 3) every point of every region."""
         return np.concatenate(self.clouds) if self.clouds else np.zeros((0, 3))
+
+    def fingerprint(self) -> str:
+        """SHA-256 (hex) of the start, the targets, the finish line and every cloud point:
+        two scenes with the same fingerprint are flown identically."""
+        digest = hashlib.sha256()
+        finish = np.zeros((0, 3)) if self.finish is None else np.asarray(self.finish, float)
+        for block in (self.start, self.targets, finish, *self.clouds):
+            digest.update(np.ascontiguousarray(block, dtype=np.float64).tobytes())
+        return digest.hexdigest()
+
+    def to_dict(self) -> dict:
+        """JSON-able description (regions as shape trees); the clouds are stored apart, as
+        arrays (see :meth:`from_dict`)."""
+        return {"name": self.name, "seed": int(self.seed),
+                "start": [float(v) for v in self.start],
+                "targets": np.atleast_2d(np.asarray(self.targets, float)).tolist(),
+                "finish": None if self.finish is None else
+                [np.asarray(v, float).tolist() for v in self.finish],
+                "regions": [{"name": r.name, "density": r.density,
+                             "shape": shape_to_dict(r.shape)} for r in self.regions],
+                "fingerprint": self.fingerprint()}
+
+    @classmethod
+    def from_dict(cls, data: dict, clouds=None) -> Scene:
+        """Rebuild a scene from :meth:`to_dict`; with ``clouds`` (one (m_i, 3) array per
+        region) the points are taken as stored, and the stored fingerprint must match."""
+        regions = tuple(Region(r["name"], shape_from_dict(r["shape"]), r["density"])
+                        for r in data["regions"])
+        finish = None if data.get("finish") is None else tuple(
+            tuple(v) for v in data["finish"])
+        scene = cls(data["name"], regions, tuple(data["start"]),
+                    tuple(tuple(t) for t in data["targets"]), int(data["seed"]), finish,
+                    None if clouds is None else tuple(clouds))
+        stored = data.get("fingerprint")
+        if stored is not None and clouds is not None and scene.fingerprint() != stored:
+            raise ValueError(f"scene {scene.name!r}: the stored clouds do not match the stored "
+                             "fingerprint (the result files are inconsistent)")
+        return scene
+
+
+def shape_to_dict(shape) -> dict:
+    """A shape tree (Box, Cylinder, Union, Difference) as nested JSON-able dicts."""
+    if isinstance(shape, Union):
+        return {"type": "Union", "parts": [shape_to_dict(s) for s in shape.parts]}
+    if isinstance(shape, Difference):
+        return {"type": "Difference", "outer": shape_to_dict(shape.outer),
+                "inner": shape_to_dict(shape.inner)}
+    if isinstance(shape, (Box, Cylinder)):
+        return {"type": type(shape).__name__,
+                **{k: (list(v) if isinstance(v, tuple) else v)
+                   for k, v in dataclasses.asdict(shape).items()}}
+    raise TypeError(f"shape must be a Box, Cylinder, Union or Difference, got {shape!r}")
+
+
+def shape_from_dict(data: dict):
+    """Inverse of :func:`shape_to_dict`."""
+    kind = data.get("type")
+    if kind == "Union":
+        return Union(tuple(shape_from_dict(s) for s in data["parts"]))
+    if kind == "Difference":
+        return Difference(shape_from_dict(data["outer"]), shape_from_dict(data["inner"]))
+    if kind == "Box":
+        return Box(tuple(data["center"]), tuple(data["size"]))
+    if kind == "Cylinder":
+        return Cylinder(tuple(data["base"]), data["radius"], data["height"])
+    raise ValueError(f"shape type must be Box, Cylinder, Union or Difference, got {kind!r}")
+
+
+def _cloud_array(name: str, cloud) -> np.ndarray:
+    arr = np.asarray(cloud, float)
+    if arr.ndim != 2 or arr.shape[1] != 3 or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be a finite (m, 3) array, got shape {arr.shape}")
+    return arr
 
 
 def make_scene(name: str, seed: int = 7) -> Scene:
