@@ -13,7 +13,7 @@ video                    :func:`animate_flight` (GIF)
 =======================  ====================================================================
 
 Each function takes a :class:`~paper_repro.simulation.SimulationResult` (and the
-:class:`~paper_repro.scene.Scene` it flew in, see :func:`scene_of`) and returns the matplotlib
+:class:`~paper_repro.scene.Scene` it flew in, ``result.scene``) and returns the matplotlib
 Figure; pass ``ax``/``axes`` to draw into an existing one. Long runs are decimated for drawing
 (at most ``max_points`` per line) with a min/max envelope, so chattering keeps its visible
 amplitude. :func:`save_figure` writes PDF (without a creation date, so byte-stable) and PNG.
@@ -34,7 +34,7 @@ from .distance import (
     smooth_distance,
     smooth_projection,
 )
-from .scene import WORKSPACE_LOWER, WORKSPACE_UPPER, Lidar, make_scene
+from .scene import WORKSPACE_LOWER, WORKSPACE_UPPER, Lidar
 
 MAX_POINTS = 5000
 """Default cap on the points drawn per line (a full mission has ≈135,000 steps)."""
@@ -449,22 +449,6 @@ def save_figure(fig, stem: str, directory, formats=("pdf", "png"), dpi: int = 15
 
 
 # --- helpers --------------------------------------------------------------------------------
-
-def scene_of(result):
-    """The Scene a result flew in, rebuilt from its config (scenario and seed).
-
-    Raises ``ValueError`` when the rebuilt scene's start or targets differ from the run's: the
-    scene was edited after the run, which then has to be flown again.
-    """
-    sim = result.config.simulation
-    scene = make_scene(sim.scenario, sim.seed)
-    same = (np.allclose(np.asarray(scene.targets, float), result.targets)
-            and np.allclose(np.asarray(scene.start, float), result.x[0, :3]))
-    if not same:
-        raise ValueError(f"scene {sim.scenario!r} has changed since this run was flown (start "
-                         "or targets differ); simulate it again")
-    return scene
-
 
 def slice_through(cloud, pad: float = 3.0):
     """A horizontal slice through the middle of a cloud: (z, extent), m.

@@ -3,12 +3,11 @@
 Two stages, each printed with its duration:
 
 1. **simulate** — the paper mission (``paper`` scene) once per metric, smoothed and Euclidean.
-   A result is cached in ``results/<run>-<hash>/`` where the hash is the SHA-256 of the run's
-   full configuration (``Config.to_dict()``), its step limit and the scene's geometry, so a
-   second call only redraws;
-   a changed parameter (the solver choice included) gives a new folder. The hash covers the
-   configuration, not the code: after a change to the model or a solver, pass ``--force``.
-   :func:`run_simulation` is the single place that flies a mission.
+   Runs go through the run cache (:mod:`paper_repro.runs`, shared with ``study``): a result
+   lives in ``results/<run>-<hash>/``, the hash covering the full configuration, the step
+   limit and the scene's fingerprint, so a second call only redraws; a changed parameter (the
+   solver choice included) gives a new folder. The hash covers the configuration, not the
+   code: after a change to the model or a solver, pass ``--force``.
 2. **notebooks** — every notebook in ``notebooks/`` is executed with papermill, its parameters
    checked against the ones the notebook declares (a wrong name raises ``ValueError``), into
    the git-ignored ``notebooks/executed/``. The notebooks write ``figures/*.pdf``, ``*.png``,
@@ -22,9 +21,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import hashlib
 import json
-import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,6 +30,7 @@ import numpy as np
 
 from . import paths
 from .config import Config
+from .runs import RunSpec, ensure_result, is_cached
 
 DESCRIPTION = """\
 Regenerate every figure of the paper and the summary table.
@@ -51,36 +49,9 @@ METRICS = ("smooth", "euclidean")
 QUICK_STEPS = 300
 """Steps per metric of a ``--quick`` run (3 s of flight; about a minute of IPOPT per metric)."""
 
-HASH_LENGTH = 12
-"""Hex digits of the config hash kept in a cache folder's name."""
-
 _QUIET_KERNEL = "--IPKernelApp.log_level=CRITICAL"
 """The kernel's own log (a transport warning at every start) is noise here: errors in a cell
 reach us as papermill exceptions, a dead kernel as ``DeadKernelError``."""
-"""Hex digits of the config hash kept in a cache folder's name."""
-
-
-@dataclass(frozen=True)
-class RunSpec:
-    """One cached closed-loop run: ``config`` flown for at most ``max_steps`` steps.
-
-    ``name`` is a readable prefix of the cache folder (``paper-smooth``); only the hash of
-    ``config`` and ``max_steps`` decides whether a cached result is reused.
-    """
-
-    name: str
-    config: Config
-    max_steps: int
-
-    @property
-    def key(self) -> str:
-        """SHA-256 of the JSON of the full configuration plus ``max_steps`` (hex)."""
-        return config_hash(self.config, self.max_steps)
-
-    def directory(self, results_dir=None) -> Path:
-        """Cache folder ``results/<name>-<hash>``."""
-        base = Path(results_dir) if results_dir is not None else paths.results_dir()
-        return base / f"{self.name}-{self.key[:HASH_LENGTH]}"
 
 
 @dataclass(frozen=True)
@@ -132,31 +103,6 @@ NOTEBOOKS = (
 
 # --- runs -----------------------------------------------------------------------------------
 
-def config_hash(config: Config, max_steps: int) -> str:
-    """SHA-256 (hex) of the run: ``config.to_dict()``, ``max_steps`` and the scene's geometry.
-
-    The scene is rebuilt from its name and seed wherever a result is used, so its geometry
-    (:func:`scene_fingerprint`) is part of the key: editing a scene re-simulates instead of
-    drawing an old flight among new clouds.
-    """
-    payload = {"config": config.to_dict(), "max_steps": int(max_steps),
-               "scene": scene_fingerprint(config)}
-    text = json.dumps(payload, sort_keys=True, separators=(",", ":"), default=str)
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
-def scene_fingerprint(config: Config) -> str:
-    """SHA-256 (hex) of the start, the targets and every cloud point of the run's scene."""
-    from .scene import make_scene
-
-    sim = config.simulation
-    scene = make_scene(sim.scenario, sim.seed)
-    digest = hashlib.sha256()
-    for block in (scene.start, scene.targets, *scene.clouds):
-        digest.update(np.ascontiguousarray(block, dtype=np.float64).tobytes())
-    return digest.hexdigest()
-
-
 def run_specs(quick: bool = False, max_steps: int | None = None,
               config: Config | None = None) -> list[RunSpec]:
     """The paper mission once per metric (:data:`METRICS`).
@@ -182,43 +128,6 @@ def run_specs(quick: bool = False, max_steps: int | None = None,
         )
         specs.append(RunSpec(f"paper-{metric}", cfg, steps))
     return specs
-
-
-def run_simulation(spec: RunSpec, progress: bool | None = None):
-    """Fly one run: the single call of :func:`~paper_repro.simulation.simulate`.
-
-    Extend here (e.g. a solver choice carried by the config) and every cached run follows.
-    """
-    from .simulation import simulate
-
-    return simulate(spec.config, max_steps=spec.max_steps, progress=progress)
-
-
-def ensure_result(spec: RunSpec, results_dir=None, force: bool = False,
-                  progress: bool | None = None) -> tuple[Path, bool]:
-    """The cache folder of ``spec``, simulating first if it is missing (or ``force``).
-
-    Returns (folder, simulated). The result is written to ``<folder>.partial`` and renamed
-    when complete, so an interrupted run never leaves a folder that looks cached.
-    """
-    out = spec.directory(results_dir)
-    if is_cached(out) and not force:
-        return out, False
-    result = run_simulation(spec, progress=progress)
-    partial = out.with_name(out.name + ".partial")
-    if partial.exists():
-        shutil.rmtree(partial)
-    result.save(partial)
-    if out.exists():
-        shutil.rmtree(out)
-    partial.rename(out)
-    return out, True
-
-
-def is_cached(directory) -> bool:
-    """A complete saved result lives in ``directory``."""
-    d = Path(directory)
-    return (d / "result.npz").is_file() and (d / "config.json").is_file()
 
 
 def default_result_dir(metric: str) -> Path:

@@ -20,12 +20,17 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .config import Config
-from .model import equilibrium, plant_step
+from .model import N_INPUTS, N_STATES, equilibrium, plant_step
 from .nmpc import NMPCSolution, TrackingNMPC, make_controller
 from .scene import Lidar, Scene, make_scene
 
 _ARRAYS = ("t", "x", "u", "x_a", "u_a", "solve_time", "iterations", "success", "clearance",
-           "target_index", "visible_points")
+           "target_index", "visible_points", "dropped_points")
+
+OUTCOMES = ("completed", "stalled", "step_limit")
+"""How a run ends: ``completed`` (every target reached, or for a passage the finish line
+crossed), ``stalled`` (the NMPC deadlocked, see
+:class:`~paper_repro.config.SimulationParams`), ``step_limit`` (``max_steps`` flown first)."""
 
 
 @dataclass
@@ -39,8 +44,12 @@ class SimulationResult:
     solve_time : (K,) s.   iterations : (K,).   success : (K,) bool, solver converged.
     status : (K,) solver return status.     clearance : (K,) m, true minimum Euclidean distance
         from the UAV to any cloud point.    target_index : (K,) index of the active set-point.
-    visible_points : (K,) number of points the LiDAR saw.
+    visible_points : (K,) number of points the LiDAR saw (after dropping non-finite ones).
+    dropped_points : (K,) non-finite points dropped from the scan.
     targets : (k, 3) m.   reached : (k,) step at which each target was reached (−1 if not).
+    outcome : one of :data:`OUTCOMES`.
+    scene : the :class:`~paper_repro.scene.Scene` flown, clouds included (saved with the
+        result, so a run always redraws against its own points).
     config : the :class:`~paper_repro.config.Config` of the run.   meta : versions, machine.
     """
 
@@ -56,8 +65,11 @@ class SimulationResult:
     clearance: np.ndarray
     target_index: np.ndarray
     visible_points: np.ndarray
+    dropped_points: np.ndarray
     targets: np.ndarray
     reached: np.ndarray
+    outcome: str
+    scene: Scene
     config: Config
     meta: dict = field(default_factory=dict)
 
@@ -71,19 +83,19 @@ class SimulationResult:
 
     @property
     def completed(self) -> bool:
-        """All targets reached."""
-        return bool(np.all(self.reached >= 0))
+        """Every target reached (mission) or the finish line crossed (passage)."""
+        return self.outcome == "completed"
 
     def summary(self) -> str:
-        """One line: metric, steps, targets reached, clearance, solve times, failures."""
+        """One line: run, outcome, steps, targets reached, clearance, solve times, failures."""
         st = self.solve_time * 1e3
-        metric = self.config.distance.metric
+        sim = self.config.simulation
         reached = int(np.sum(self.reached >= 0))
-        return (f"{self.config.simulation.scenario}/{metric}: {self.steps} steps "
-                f"({self.steps * self.config.nmpc.ts:.2f} s simulated), targets reached "
-                f"{reached}/{len(self.targets)}, min clearance {self.clearance.min():.3f} m, "
-                f"solve median {np.median(st):.1f} ms p95 {np.percentile(st, 95):.1f} ms, "
-                f"failed solves {self.failures}")
+        return (f"{self.scene.name}/{self.config.distance.metric} ({sim.kind}): {self.outcome} "
+                f"after {self.steps} steps ({self.steps * self.config.nmpc.ts:.2f} s "
+                f"simulated), targets reached {reached}/{len(self.targets)}, min clearance "
+                f"{self.clearance.min():.3f} m, solve median {np.median(st):.2g} ms p95 "
+                f"{np.percentile(st, 95):.2g} ms, failed solves {self.failures}")
 
     def to_frame(self):
         """One row per step: t, position, Euler angles, velocities, thrusts, y_a, solver data."""
@@ -99,28 +111,39 @@ class SimulationResult:
         data.update({"solve_time": self.solve_time, "iterations": self.iterations,
                      "success": self.success, "status": self.status,
                      "clearance": self.clearance, "target_index": self.target_index,
-                     "visible_points": self.visible_points})
+                     "visible_points": self.visible_points,
+                     "dropped_points": self.dropped_points})
         return pd.DataFrame(data)
 
     def save(self, directory) -> Path:
-        """Write ``result.npz`` and ``config.json`` (config + versions + commit + machine)."""
+        """Write ``result.npz`` (arrays and the scene's clouds) and ``config.json`` (config,
+        scene description and fingerprint, outcome, versions, commit, machine)."""
         out = Path(directory)
         out.mkdir(parents=True, exist_ok=True)
         arrays = {k: getattr(self, k) for k in _ARRAYS}
+        clouds = {f"cloud_{i}": c for i, c in enumerate(self.scene.clouds)}
         np.savez_compressed(out / "result.npz", status=self.status.astype(str),
-                            targets=self.targets, reached=self.reached, **arrays)
-        payload = {"config": self.config.to_dict(), "meta": self.meta}
+                            targets=self.targets, reached=self.reached, **arrays, **clouds)
+        payload = {"config": self.config.to_dict(), "scene": self.scene.to_dict(),
+                   "outcome": self.outcome, "meta": self.meta}
         (out / "config.json").write_text(json.dumps(payload, indent=2, default=str) + "\n")
         return out
 
     @classmethod
     def load(cls, directory) -> SimulationResult:
+        """Read a result written by :meth:`save`; the scene is rebuilt from its stored clouds
+        (checked against the stored fingerprint), never regenerated."""
         d = Path(directory)
         payload = json.loads((d / "config.json").read_text())
+        if "scene" not in payload:
+            raise ValueError(f"{d}: this result was saved before results stored their scene; "
+                             "simulate it again")
         with np.load(d / "result.npz") as z:
-            arrays = {k: z[k] for k in z.files}
+            arrays = {k: z[k] for k in z.files if not k.startswith("cloud_")}
+            clouds = [z[f"cloud_{i}"] for i in range(len(payload["scene"]["regions"]))]
+        scene = Scene.from_dict(payload["scene"], clouds)
         return cls(config=Config.from_dict(payload["config"]), meta=payload.get("meta", {}),
-                   **arrays)
+                   outcome=payload["outcome"], scene=scene, **arrays)
 
 
 def simulate(config: Config | None = None, controller: TrackingNMPC | None = None,
@@ -132,14 +155,18 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
     ----------
     config : run configuration (defaults: the paper's settings, ``paper`` scenario).
     controller : a built controller for the same config (built here if omitted; building is
-        the slow part, so pass one in when flying several missions).
+        the slow part, so pass one in when flying several missions). It is reset first
+        (:meth:`reset`), so a flight is the same whether the controller is new or reused.
     max_steps : overrides ``config.simulation.max_steps``.
     progress : show a progress bar (default: only when writing to a terminal).
     scene : fly this scene instead of ``config.simulation.scenario`` (e.g. your own regions, or
-        a variant made with ``dataclasses.replace``); its name is stored in ``meta["scene"]``.
+        a variant made with ``dataclasses.replace``); it is saved with the result.
 
+    The run ends when it is complete (every target reached; for ``kind="passage"`` the finish
+    line crossed), when it stalls, or after ``max_steps``: see :data:`OUTCOMES`.
     A failed solve never stops the run: it is recorded in ``success``/``status`` and the
-    previous plan, shifted by one step, is applied instead (its first input).
+    previous plan, shifted by one step, is applied instead (its first input). Non-finite points
+    in a scan are dropped and counted in ``dropped_points``.
     """
     cfg = config or Config()
     if max_steps is not None:
@@ -147,38 +174,39 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
                                                                       max_steps=max_steps))
     sim, ts = cfg.simulation, cfg.nmpc.ts
     scene = scene if scene is not None else make_scene(sim.scenario, sim.seed)
+    passage = sim.kind == "passage"
+    if passage and scene.finish is None:
+        raise ValueError(f"kind='passage' needs a scene with a finish line; scene "
+                         f"{scene.name!r} has none (use kind='mission')")
     lidar = Lidar(scene.clouds, sim.lidar_range)
-    truth = cKDTree(scene.all_points)
+    truth = cKDTree(scene.all_points) if len(scene.all_points) else None
     ctl = controller or make_controller(cfg)
+    ctl.reset()
     counts_before = dict(ctl.qp_counts) if hasattr(ctl, "qp_counts") else None
-    targets = np.asarray(scene.targets, float)
+    targets = np.atleast_2d(np.asarray(scene.targets, float))
+    finish_point, finish_dir = ((np.asarray(v, float) for v in scene.finish) if passage
+                                else (None, None))
+    stall_steps = int(np.ceil(sim.stall_time / ts))
 
     x, _ = equilibrium(scene.start, 0.0, cfg.quadrotor)
-    log = {k: [] for k in ("t", "x", "u", "x_a", "u_a", "solve_time", "iterations", "success",
-                           "status", "clearance", "target_index", "visible_points")}
+    log = _Log(sim.max_steps)
     reached = np.full(len(targets), -1)
-    target_index = 0
+    target_index, slow, outcome = 0, 0, "step_limit"
     plan: NMPCSolution | None = None
     meta = run_metadata()  # before flying: the commit and versions that produce this run
     bar = _progress_bar(sim.max_steps, progress)
     wall = time.perf_counter()
     for k in range(sim.max_steps):
         target = targets[target_index]
-        visible = lidar.scan(x[:3])
+        visible, dropped = _finite_points(lidar.scan(x[:3]))
         sol = ctl.solve(x, target, visible, previous=plan)
         if sol.success:
             plan = sol
         else:
             plan = plan.shifted() if plan is not None else ctl.hover_guess(x)
         u = plan.u[0]
-
-        for key, value in (("t", k * ts), ("x", x), ("u", u), ("x_a", sol.x_a),
-                           ("u_a", sol.u_a), ("solve_time", sol.solve_time),
-                           ("iterations", sol.iterations), ("success", sol.success),
-                           ("status", sol.status), ("clearance", truth.query(x[:3])[0]),
-                           ("target_index", target_index),
-                           ("visible_points", sum(len(v) for v in visible))):
-            log[key].append(value)
+        log.record(k, k * ts, x, u, sol, np.inf if truth is None else truth.query(x[:3])[0],
+                   target_index, sum(len(v) for v in visible), dropped)
 
         x = plant_step(x, u, ts, cfg.quadrotor)
         error = float(np.linalg.norm(x[:3] - target))
@@ -187,22 +215,32 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
             if k % 50 == 0:
                 bar.set_postfix(target=target_index, error=f"{error:.2f} m",
                                 solve=f"{sol.solve_time * 1e3:.2g} ms")
-        if error < sim.tolerance:
+        if error < sim.tolerance and reached[target_index] < 0:
             reached[target_index] = k + 1
-            target_index += 1
-            if target_index == len(targets):
+            if target_index + 1 < len(targets):
+                target_index += 1
+            elif not passage:
+                outcome = "completed"
                 break
+        if passage and float(np.dot(x[:3] - finish_point, finish_dir)) >= 0.0:
+            outcome = "completed"
+            break
+        # Stalled: slow for stall_time while still far from the target (a deadlock).
+        slow = slow + 1 if (np.linalg.norm(x[6:9]) < sim.stall_speed
+                            and error > sim.stall_distance) else 0
+        if slow > stall_steps:
+            outcome = "stalled"
+            break
     if bar is not None:
         bar.close()
 
-    log["x"].append(x)
-    arrays = {k: np.asarray(v) for k, v in log.items()}
-    arrays["status"] = arrays["status"].astype(str)
+    arrays = log.arrays(x)
     meta["wall_time_s"] = time.perf_counter() - wall
     meta["scene"] = scene.name
     if counts_before is not None:  # QPs of this run by solver path (rti solver only)
         meta["qp_counts"] = {k: v - counts_before.get(k, 0) for k, v in ctl.qp_counts.items()}
-    return SimulationResult(targets=targets, reached=reached, config=cfg, meta=meta, **arrays)
+    return SimulationResult(targets=targets, reached=reached, outcome=outcome, scene=scene,
+                            config=cfg, meta=meta, **arrays)
 
 
 def run_metadata() -> dict:
@@ -231,3 +269,55 @@ def _progress_bar(total: int, progress: bool | None):
     from tqdm import tqdm
 
     return tqdm(total=total, unit="step", desc="closed loop", smoothing=0.05)
+
+
+class _Log:
+    """Preallocated per-step arrays of :func:`simulate` (no list growth in the loop)."""
+
+    def __init__(self, capacity: int):
+        self.n = 0
+        self.t = np.empty(capacity)
+        self.x = np.empty((capacity + 1, N_STATES))
+        self.u = np.empty((capacity, N_INPUTS))
+        self.x_a = np.empty((capacity, N_STATES))
+        self.u_a = np.empty((capacity, N_INPUTS))
+        self.solve_time = np.empty(capacity)
+        self.iterations = np.empty(capacity, dtype=int)
+        self.success = np.empty(capacity, dtype=bool)
+        self.status = np.empty(capacity, dtype=object)
+        self.clearance = np.empty(capacity)
+        self.target_index = np.empty(capacity, dtype=int)
+        self.visible_points = np.empty(capacity, dtype=int)
+        self.dropped_points = np.empty(capacity, dtype=int)
+
+    def record(self, k, t, x, u, sol, clearance, target_index, visible, dropped) -> None:
+        self.t[k], self.x[k], self.u[k] = t, x, u
+        self.x_a[k], self.u_a[k] = sol.x_a, sol.u_a
+        self.solve_time[k], self.iterations[k] = sol.solve_time, sol.iterations
+        self.success[k], self.status[k] = sol.success, sol.status
+        self.clearance[k], self.target_index[k] = clearance, target_index
+        self.visible_points[k], self.dropped_points[k] = visible, dropped
+        self.n = k + 1
+
+    def arrays(self, x_last) -> dict:
+        """The recorded rows (and ``x`` with the state after the last step appended)."""
+        n = self.n
+        self.x[n] = x_last
+        out = {k: getattr(self, k)[:n].copy() for k in _ARRAYS if k != "x"}
+        out["x"] = self.x[:n + 1].copy()
+        out["status"] = self.status[:n].astype(str)
+        return out
+
+
+def _finite_points(visible) -> tuple[list[np.ndarray], int]:
+    """The scan without its non-finite points (a bad return is dropped, not flown on), and
+    how many were dropped."""
+    clean, dropped = [], 0
+    for v in visible:
+        ok = np.isfinite(v).all(axis=1)
+        if ok.all():
+            clean.append(v)
+        else:
+            clean.append(v[ok])
+            dropped += int(len(v) - ok.sum())
+    return clean, dropped

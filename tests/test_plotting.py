@@ -21,7 +21,7 @@ def scene():
 
 
 @pytest.fixture(scope="module")
-def result():
+def result(scene):
     """A hand-made flight of the paper scene: from the start past the tower (1 m from its
     face at t = 30 s) to the first target, which is reached at step 4,000 of 6,000."""
     steps = 6000
@@ -41,7 +41,8 @@ def result():
         solve_time=np.full(steps, 0.08), iterations=np.full(steps, 9),
         success=np.ones(steps, bool), status=np.full(steps, "Solve_Succeeded"),
         clearance=1.0 + np.abs(k[:-1] - 3000) / 1000, target_index=index,
-        visible_points=np.zeros(steps, int), targets=targets, reached=np.array([4000, -1]),
+        visible_points=np.zeros(steps, int), dropped_points=np.zeros(steps, int),
+        targets=targets, reached=np.array([4000, -1]), outcome="step_limit", scene=scene,
         config=Config())
 
 
@@ -157,16 +158,13 @@ def test_lidar_instants_pick_the_closest_approach(result, scene):
     assert all(np.linalg.norm(a - b) >= r_s for i, a in enumerate(pos) for b in pos[i + 1:])
 
 
-def test_scene_of_rebuilds_the_scene(result, scene):
-    rebuilt = P.scene_of(result)
-    assert rebuilt.name == "paper"
-    assert all(np.array_equal(a, b) for a, b in zip(rebuilt.clouds, scene.clouds))
-
-
-def test_scene_of_refuses_a_scene_edited_after_the_run(result):
-    moved = dataclasses.replace(result, targets=result.targets + 1.0)
-    with pytest.raises(ValueError, match="changed"):
-        P.scene_of(moved)
+def test_a_saved_run_redraws_against_its_own_clouds(result, tmp_path):
+    """The scene travels with the result: after save/load the figure's clouds are the
+    flown ones, point for point, even when the scene is edited afterwards."""
+    result.save(tmp_path / "run")
+    loaded = type(result).load(tmp_path / "run")
+    assert loaded.scene.fingerprint() == result.scene.fingerprint()
+    assert all(np.array_equal(a, b) for a, b in zip(loaded.scene.clouds, result.scene.clouds))
 
 
 def test_slice_through_the_middle_of_a_cloud():

@@ -1,7 +1,7 @@
-"""``python -m paper_repro reproduce``: run specs, the config-hash cache, the whole pipeline.
+"""``python -m paper_repro reproduce``: run specs, the run cache, the whole pipeline.
 
-The closed loop is replaced by a hand-made result here (``run_simulation`` is the single
-place that flies a mission); test_notebooks.py runs the notebooks on real closed-loop runs.
+The closed loop is replaced by a hand-made result here (``runs.fly`` is the single place that
+flies a run); test_notebooks.py runs the notebooks on real closed-loop runs.
 """
 
 import dataclasses
@@ -11,13 +11,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from paper_repro import Config, DistanceParams, NMPCParams, paths
+from paper_repro import Config, DistanceParams, NMPCParams, paths, runs
 from paper_repro import reproduce as R
 from paper_repro.cli import main
 from paper_repro.simulation import SimulationResult
 
 
-def _fake_result(spec, progress=None):
+def _fake_result(spec, controller=None, progress=None):
     """A straight climb from the start with hover thrusts plus a small wobble."""
     steps = min(spec.max_steps, 200)
     k = np.arange(steps + 1)
@@ -29,43 +29,46 @@ def _fake_result(spec, progress=None):
         solve_time=np.full(steps, 0.05), iterations=np.full(steps, 8),
         success=np.ones(steps, bool), status=np.full(steps, "Solve_Succeeded"),
         clearance=np.full(steps, 11.0), target_index=np.zeros(steps, int),
-        visible_points=np.zeros(steps, int), targets=np.array([[-12.0, 18, 11], [-21, 18, 0]]),
-        reached=np.array([-1, -1]), config=spec.config, meta={"wall_time_s": 1.0})
+        visible_points=np.zeros(steps, int), dropped_points=np.zeros(steps, int),
+        targets=np.array([[-12.0, 18, 11], [-21, 18, 0]]), reached=np.array([-1, -1]),
+        outcome="step_limit", scene=spec.scene(), config=spec.config,
+        meta={"wall_time_s": 1.0})
 
 
 @pytest.fixture
 def fake_simulation(monkeypatch):
     calls = []
 
-    def fake(spec, progress=None):
+    def fake(spec, controller=None, progress=None):
         calls.append(spec.name)
         return _fake_result(spec)
 
-    monkeypatch.setattr(R, "run_simulation", fake)
+    monkeypatch.setattr(runs, "fly", fake)
     return calls
 
 
-def test_config_hash_is_stable_and_changes_with_any_parameter():
-    cfg = Config()
-    h = R.config_hash(cfg, 1000)
-    assert len(h) == 64 and h == R.config_hash(Config.from_dict(cfg.to_dict()), 1000)
-    assert h != R.config_hash(cfg, 1001)
-    other = dataclasses.replace(cfg, distance=DistanceParams(metric="euclidean"))
-    assert h != R.config_hash(other, 1000)
-    eta = dataclasses.replace(cfg, distance=DistanceParams(eta=0.31))
-    assert h != R.config_hash(eta, 1000)
+def test_run_key_is_stable_and_changes_with_any_parameter():
+    spec = R.run_specs(max_steps=1000)[0]
+    h = spec.key
+    again = runs.RunSpec(spec.name, Config.from_dict(spec.config.to_dict()), 1000)
+    assert len(h) == 64 and h == again.key
+    assert h != runs.RunSpec(spec.name, spec.config, 1001).key
+    other = dataclasses.replace(spec.config, nmpc=NMPCParams(horizon=20))
+    assert h != runs.RunSpec(spec.name, other, 1000).key
+    eta = dataclasses.replace(spec.config, distance=DistanceParams(eta=0.31))
+    assert h != runs.RunSpec(spec.name, eta, 1000).key
 
 
-def test_config_hash_follows_the_scene_geometry(monkeypatch):
-    cfg = Config()
-    fp = R.scene_fingerprint(cfg)
-    assert len(fp) == 64 and fp == R.scene_fingerprint(Config())
-    reseeded = dataclasses.replace(cfg, simulation=dataclasses.replace(cfg.simulation, seed=8))
-    assert R.scene_fingerprint(reseeded) != fp
-    h = R.config_hash(cfg, 1000)
-    # An edited scene (same name and seed, other points) must not hit the old cache.
-    monkeypatch.setattr(R, "scene_fingerprint", lambda config: "edited")
-    assert R.config_hash(cfg, 1000) != h
+def test_run_key_follows_the_scene_geometry(monkeypatch):
+    """The key holds the scene's fingerprint: a generator that now builds other clouds (or
+    another seed) gives a new folder instead of an old flight among new clouds."""
+    spec = R.run_specs(max_steps=1000)[0]
+    reseeded = dataclasses.replace(spec.config, simulation=dataclasses.replace(
+        spec.config.simulation, seed=8))
+    assert runs.RunSpec(spec.name, reseeded, 1000).key != spec.key
+    h = spec.key
+    monkeypatch.setattr(runs, "run_key", lambda c, m, fp: fp)
+    assert spec.key == spec.scene().fingerprint() != h
 
 
 def test_run_specs_fly_the_paper_mission_for_both_metrics():
@@ -87,7 +90,7 @@ def test_run_specs_fly_the_paper_mission_for_both_metrics():
 def test_cache_folder_is_named_by_run_and_hash(tmp_path):
     spec = R.run_specs(quick=True)[0]
     d = spec.directory(tmp_path)
-    assert d.parent == tmp_path and d.name == f"paper-smooth-{spec.key[:R.HASH_LENGTH]}"
+    assert d.parent == tmp_path and d.name == f"paper-smooth-{spec.key[:runs.HASH_LENGTH]}"
     assert spec.directory().parent == paths.results_dir()
     assert R.default_result_dir("smooth") == R.run_specs()[0].directory()
     with pytest.raises(ValueError, match="metric"):
@@ -96,25 +99,25 @@ def test_cache_folder_is_named_by_run_and_hash(tmp_path):
 
 def test_ensure_result_simulates_once_then_reuses_the_cache(tmp_path, fake_simulation):
     spec = R.run_specs(max_steps=50)[0]
-    d, simulated = R.ensure_result(spec, tmp_path)
-    assert simulated and R.is_cached(d) and fake_simulation == ["paper-smooth"]
+    d, simulated = runs.ensure_result(spec, tmp_path)
+    assert simulated and runs.is_cached(d) and fake_simulation == ["paper-smooth"]
     assert SimulationResult.load(d).config == spec.config
-    assert R.ensure_result(spec, tmp_path) == (d, False)
+    assert runs.ensure_result(spec, tmp_path) == (d, False)
     assert fake_simulation == ["paper-smooth"]
-    assert R.ensure_result(spec, tmp_path, force=True) == (d, True)
+    assert runs.ensure_result(spec, tmp_path, force=True) == (d, True)
     assert len(fake_simulation) == 2
     assert [p.name for p in tmp_path.iterdir()] == [d.name]  # no .partial left behind
 
 
 def test_a_failed_simulation_leaves_nothing_that_looks_cached(tmp_path, monkeypatch):
-    def crash(spec, progress=None):
+    def crash(spec, controller=None, progress=None):
         raise RuntimeError("solver exploded")
 
-    monkeypatch.setattr(R, "run_simulation", crash)
+    monkeypatch.setattr(runs, "fly", crash)
     spec = R.run_specs(max_steps=50)[1]
     with pytest.raises(RuntimeError):
-        R.ensure_result(spec, tmp_path)
-    assert not R.is_cached(spec.directory(tmp_path))
+        runs.ensure_result(spec, tmp_path)
+    assert not runs.is_cached(spec.directory(tmp_path))
 
 
 def test_reproduce_simulates_missing_runs_then_only_redraws_byte_identical_figures(
