@@ -39,7 +39,8 @@ class QuadrotorParams:
     def __post_init__(self):
         for name in ("mass", "arm", "gravity", "thrust_coefficient", "drag_coefficient"):
             _require_positive(name, getattr(self, name))
-        if len(self.inertia) != 3 or not all(math.isfinite(i) and i > 0 for i in self.inertia):
+        if not (isinstance(self.inertia, (tuple, list)) and len(self.inertia) == 3 and all(
+                _is_number(i) and math.isfinite(i) and i > 0 for i in self.inertia)):
             raise ValueError(
                 f"inertia must be three finite values > 0 (kg·m²), got {self.inertia!r}")
 
@@ -105,12 +106,13 @@ class BarrierParams:
     form: str = "printed"
 
     def __post_init__(self):
-        if not (0.0 < self.delta < 1.0):
+        if not (_is_number(self.delta) and 0.0 < self.delta < 1.0):
             raise ValueError(f"delta must lie in (0, 1), got {self.delta!r}")
         _require_positive("d_min", self.d_min)
         _require_positive("kappa", self.kappa)
         _require_positive("mu", self.mu)
-        if not (math.isfinite(self.epsilon) and self.epsilon >= 1.0):
+        if not (_is_number(self.epsilon) and math.isfinite(self.epsilon)
+                and self.epsilon >= 1.0):
             raise ValueError(
                 f"epsilon must be a finite value >= 1 (ε < 1 has unbounded gradients "
                 f"where the penalty is zero), got {self.epsilon!r}"
@@ -134,7 +136,12 @@ class NMPCParams:
     Attributes
     ----------
     horizon : N, *paper* 35.
-    ts : T_s, s, *paper* 0.01.
+    ts : T_s, s, *paper* 0.01. Sampling period of the controller and the plant.
+    prediction_ts : s, *chosen* ``None`` (= ``ts``, as the paper). Step of the prediction
+        model (eq. 1) in both solvers, when it should differ from the sampling period: the
+        prediction then spans N·prediction_ts, and the terminal constraint x_N = x_a asks the
+        UAV to be at rest at the artificial equilibrium after that time rather than N·T_s.
+        See :mod:`paper_repro.timeline` for why this sets the mission's clock.
     q, r, t : diagonals of Q (12), R (4), T (3), *paper*.
     state_lower, state_upper : (12,) bounds of 𝒳, *paper*; position, Euler angles (rad),
         velocities (m/s), Euler-angle rates (rad/s).
@@ -157,6 +164,7 @@ class NMPCParams:
 
     horizon: int = 35
     ts: float = 0.01
+    prediction_ts: float | None = None
     q: tuple[float, ...] = _diag(1, 1, 1, 0.1, 0.1, 1, 1, 1, 1, 10, 10, 1)
     r: tuple[float, ...] = _diag(3, 3, 3, 3)
     t: tuple[float, ...] = _diag(1000, 1000, 1000)
@@ -178,26 +186,34 @@ class NMPCParams:
     points_per_region: int = 120
 
     def __post_init__(self):
-        if not (isinstance(self.horizon, int) and self.horizon >= 1):
-            raise ValueError(f"horizon must be an integer >= 1, got {self.horizon!r}")
+        _require_int("horizon", self.horizon, 1)
         _require_positive("ts", self.ts)
+        if self.prediction_ts is not None:
+            _require_positive("prediction_ts", self.prediction_ts)
         for name, n in (("q", 12), ("r", 4), ("t", 3), ("state_lower", 12),
                         ("state_upper", 12), ("input_lower", 4), ("input_upper", 4)):
-            v = getattr(self, name)
-            if len(v) != n or not all(math.isfinite(x) for x in v):
-                raise ValueError(f"{name} must have {n} finite entries, got {v!r}")
+            _require_vector(name, getattr(self, name), n)
+        # Cross-field: 𝒳 and 𝒰 must be boxes with interior (lower < upper, per index), or
+        # the first QP is infeasible and HPIPM fails without saying why.
+        _require_ordered("state_lower", self.state_lower, "state_upper", self.state_upper)
+        _require_ordered("input_lower", self.input_lower, "input_upper", self.input_upper)
         if any(x < 0 for x in self.q):
             raise ValueError(f"q must be >= 0 (Q ⪰ 0), got {self.q!r}")
-        if any(x <= 0 for x in self.r + self.t):
-            raise ValueError("r and t must be > 0 (R ≻ 0, T ≻ 0)")
-        if not (0.0 < self.lam < 1.0):
+        for name in ("r", "t"):
+            if any(x <= 0 for x in getattr(self, name)):
+                raise ValueError(f"{name} must be > 0 ({name.upper()} ≻ 0), got "
+                                 f"{getattr(self, name)!r}")
+        if not (_is_number(self.lam) and 0.0 < self.lam < 1.0):
             raise ValueError(f"lam must lie in (0, 1), got {self.lam!r}")
         _require_choice("solver", self.solver, ("rti", "reference"))
         _require_choice("qp_solver", self.qp_solver, ("riccati", "hpipm"))
         for name in ("region_slots", "points_per_region", "sqp_iterations"):
-            v = getattr(self, name)
-            if not (isinstance(v, int) and v >= 1):
-                raise ValueError(f"{name} must be an integer >= 1, got {v!r}")
+            _require_int(name, getattr(self, name), 1)
+
+    @property
+    def prediction_step(self) -> float:
+        """Step of the prediction model in s: ``prediction_ts``, or ``ts`` when it is None."""
+        return self.ts if self.prediction_ts is None else float(self.prediction_ts)
 
     def relaxed_bounds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """λ(𝒳 × 𝒰): the box shrunk by λ about its centre.
@@ -220,41 +236,131 @@ class SimulationParams:
 
     Attributes
     ----------
-    scenario : scene name (``"paper"`` or ``"encounter"``).
+    scenario : scene name (``"paper"``, ``"encounter"`` or ``"random"``, see
+        :func:`paper_repro.scene.make_scene`).
+    kind : ``"mission"`` (reach every target in turn, as the paper) or ``"passage"`` (the run
+        ends when the UAV crosses the scene's finish line, 2 m past the obstacle field of a
+        random scene; needs a scene with a ``finish``).
     tolerance : m, *paper* 0.3. A target counts as reached when the UAV is closer than this.
     max_steps : upper bound on closed-loop steps (one step is T_s).
     lidar_range : r_s, m, *paper* 3.
-    seed : seed of the Halton point clouds.
+    seed : seed of the scene: the Halton point clouds (region i uses ``seed + i``) and, for
+        ``"random"``, the layout.
+    stall_speed, stall_time, stall_distance : m/s, s, m, *chosen* 0.01, 5, 2. The NMPC is
+        local and can deadlock in front of a cloud: the run is *stalled*, and ends, when the
+        speed stays below ``stall_speed`` for more than ``stall_time`` while the UAV is more
+        than ``stall_distance`` from its target. Under the printed weights the speed of a
+        free approach is about (distance to target)/150 s, i.e. 1 cm/s at 1.5 m, so a
+        threshold of 1 m would flag every normal final approach; 2 m leaves a third above it.
     """
 
     scenario: str = "paper"
+    kind: str = "mission"
     tolerance: float = 0.3
     max_steps: int = 200_000
     lidar_range: float = 3.0
     seed: int = 7
+    stall_speed: float = 0.01
+    stall_time: float = 5.0
+    stall_distance: float = 2.0
 
     def __post_init__(self):
+        _require_choice("kind", self.kind, ("mission", "passage"))
         _require_positive("tolerance", self.tolerance)
         _require_positive("lidar_range", self.lidar_range)
-        if not (isinstance(self.max_steps, int) and self.max_steps >= 1):
-            raise ValueError(f"max_steps must be an integer >= 1, got {self.max_steps!r}")
+        for name in ("stall_speed", "stall_time", "stall_distance"):
+            _require_positive(name, getattr(self, name))
+        if not (isinstance(self.scenario, str) and self.scenario):
+            raise ValueError(f"scenario must be a scene name (a non-empty str), got "
+                             f"{self.scenario!r}")
+        _require_int("max_steps", self.max_steps, 1)
+        _require_int("seed", self.seed, 0)
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    """Imperfections of the virtual LiDAR (:class:`paper_repro.scene.Lidar`), for studies.
+
+    The defaults are a perfect sensor, as in the paper: every point within r_s is returned
+    exactly, and nothing else. Noise is drawn from a generator seeded with ``seed``, so a
+    flight is reproducible.
+
+    Attributes
+    ----------
+    range_noise : m, *chosen* 0. Standard deviation of Gaussian noise on the measured range,
+        along the ray from the sensor to the point (the direction is exact).
+    dropout : probability in [0, 1) that a point within range is not returned, *chosen* 0.
+    spurious_rate : expected number of spurious returns per scan (Poisson), *chosen* 0; each
+        lies uniformly inside the sensing sphere and is attributed to the region whose cloud
+        holds the point nearest to it.
+    seed : seed of the sensor's noise generator, an integer >= 0.
+    """
+
+    range_noise: float = 0.0
+    dropout: float = 0.0
+    spurious_rate: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self):
+        for name in ("range_noise", "spurious_rate"):
+            v = getattr(self, name)
+            if not (_is_number(v) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        _require_range("dropout", self.dropout, 0.0, 1.0)
+        _require_int("seed", self.seed, 0)
+
+    @property
+    def perfect(self) -> bool:
+        """True when the sensor adds no noise, drops nothing and invents nothing."""
+        return self.range_noise == 0 and self.dropout == 0 and self.spurious_rate == 0
 
 
 @dataclass(frozen=True)
 class Config:
-    """Everything that defines one run; saved as ``config.json`` beside each result."""
+    """Everything that defines one run; saved as ``config.json`` beside each result.
+
+    A ``config.json`` written before a part existed (e.g. ``sensor``) loads with that part's
+    defaults (:meth:`from_dict`).
+    """
 
     quadrotor: QuadrotorParams = field(default_factory=QuadrotorParams)
     distance: DistanceParams = field(default_factory=DistanceParams)
     barrier: BarrierParams = field(default_factory=BarrierParams)
     nmpc: NMPCParams = field(default_factory=NMPCParams)
     simulation: SimulationParams = field(default_factory=SimulationParams)
+    sensor: SensorParams = field(default_factory=SensorParams)
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            if not isinstance(getattr(self, f.name), f.default_factory):
+                raise ValueError(f"{f.name} must be a {f.default_factory.__name__}, got "
+                                 f"{getattr(self, f.name)!r}")
+        # Cross-field: the artificial equilibrium (hover at rest, eq. 7) must exist in
+        # λ(𝒳 × 𝒰), or the OCP is infeasible at every step.
+        xl, xu, ul, uu = self.nmpc.relaxed_bounds()
+        hover = self.quadrotor.hover_thrust
+        if not np.all((ul <= hover) & (hover <= uu)):
+            raise ValueError(f"nmpc.input_lower/input_upper must hold the hover thrust "
+                             f"m·g/4 = {hover:.4g} N inside λ(𝒰) = [{ul.min():.4g}, "
+                             f"{uu.max():.4g}] N per rotor, got input bounds "
+                             f"{self.nmpc.input_lower!r} to {self.nmpc.input_upper!r}")
+        for i in (3, 4, *range(6, 12)):  # roll, pitch, velocities and rates are 0 at rest
+            if not xl[i] <= 0.0 <= xu[i]:
+                raise ValueError(f"nmpc.state_lower[{i}] < 0 < nmpc.state_upper[{i}] is needed "
+                                 f"for hover (at rest this state is 0), got λ-relaxed bounds "
+                                 f"[{xl[i]:.4g}, {xu[i]:.4g}]")
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
 
     @classmethod
     def from_dict(cls, data: dict) -> Config:
+        """Inverse of :meth:`to_dict`; a missing part (an older file) takes its defaults."""
+        if not isinstance(data, dict):
+            raise ValueError(f"config must be a dict of parts, got {type(data).__name__}")
+        unknown = set(data) - {f.name for f in dataclasses.fields(cls)}
+        if unknown:
+            raise ValueError(f"config has unknown parts {sorted(unknown)}")
         parts = {}
         for f in dataclasses.fields(cls):
             sub_cls = f.default_factory
@@ -269,12 +375,48 @@ class Config:
         return cls(**parts)
 
 
+def _is_number(value) -> bool:
+    """A real scalar, not a bool (``True`` is an ``int`` but never a meaningful setting)."""
+    return (isinstance(value, (int, float, np.floating, np.integer))
+            and not isinstance(value, (bool, np.bool_)))
+
+
 def _require_positive(name: str, value: float) -> None:
-    if not (isinstance(value, (int, float, np.floating, np.integer)) and math.isfinite(value)
-            and value > 0):
+    if not (_is_number(value) and math.isfinite(value) and value > 0):
         raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
 
 
+def _require_range(name: str, value: float, lower: float, upper: float,
+                   closed_upper: bool = False) -> None:
+    """``lower <= value < upper`` (``<= upper`` when ``closed_upper``), finite."""
+    inside = _is_number(value) and math.isfinite(value) and lower <= value and (
+        value <= upper if closed_upper else value < upper)
+    if not inside:
+        bracket = "]" if closed_upper else ")"
+        raise ValueError(f"{name} must be a finite number in [{lower}, {upper}{bracket}, "
+                         f"got {value!r}")
+
+
+def _require_int(name: str, value: int, minimum: int) -> None:
+    if not (isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+            and value >= minimum):
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+
+
+def _require_vector(name: str, value, n: int) -> None:
+    if not (isinstance(value, (tuple, list)) and len(value) == n
+            and all(_is_number(x) and math.isfinite(x) for x in value)):
+        raise ValueError(f"{name} must be {n} finite numbers, got {value!r}")
+
+
+def _require_ordered(lower_name: str, lower, upper_name: str, upper) -> None:
+    """Bounds of a box: lower[i] < upper[i] for every i, naming the first bad index."""
+    for i, (lo, hi) in enumerate(zip(lower, upper, strict=True)):
+        if not lo < hi:
+            raise ValueError(f"{lower_name}[{i}] must be < {upper_name}[{i}], got {lo!r} >= "
+                             f"{hi!r}")
+
+
 def _require_choice(name: str, value: str, choices: tuple[str, ...]) -> None:
-    if value not in choices:
+    if not (isinstance(value, str) and value in choices):
         raise ValueError(f"{name} must be one of {choices}, got {value!r}")
