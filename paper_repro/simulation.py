@@ -1,4 +1,4 @@
-"""Closed-loop mission: LiDAR scan → NMPC → plant (solve_ivp, zero-order hold), and its result.
+"""Closed-loop mission: LiDAR scan → NMPC → plant (RK45, zero-order hold), and its result.
 
 The step loop of :func:`simulate` is short on purpose; read it to see exactly what happens at
 each sampling instant. :class:`SimulationResult` saves itself as ``result.npz`` with the full
@@ -20,8 +20,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .config import Config
-from .model import N_INPUTS, N_STATES, equilibrium, plant_step
+from .model import N_INPUTS, N_STATES, equilibrium
 from .nmpc import NMPCSolution, TrackingNMPC, make_controller
+from .plant import Plant
 from .scene import Lidar, Scene, make_scene
 
 _ARRAYS = ("t", "x", "u", "x_a", "u_a", "solve_time", "iterations", "success", "clearance",
@@ -179,6 +180,7 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
         raise ValueError(f"kind='passage' needs a scene with a finish line; scene "
                          f"{scene.name!r} has none (use kind='mission')")
     lidar = Lidar(scene.clouds, sim.lidar_range)
+    plant = Plant(cfg.quadrotor, ts)  # RK45 in C, as solve_ivp (ODE45 in the paper)
     truth = cKDTree(scene.all_points) if len(scene.all_points) else None
     ctl = controller or make_controller(cfg)
     ctl.reset()
@@ -208,7 +210,7 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
         log.record(k, k * ts, x, u, sol, np.inf if truth is None else truth.query(x[:3])[0],
                    target_index, sum(len(v) for v in visible), dropped)
 
-        x = plant_step(x, u, ts, cfg.quadrotor)
+        x = plant.step(x, u)
         error = float(np.linalg.norm(x[:3] - target))
         if bar is not None:
             bar.update(1)
