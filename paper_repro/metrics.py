@@ -126,12 +126,24 @@ def tracking_error(result) -> np.ndarray:
     return result.x[:-1, :3] - targets[np.asarray(result.target_index, int)]
 
 
+COLLISION_CLEARANCE = 0.35
+"""m: a run *collides* when its true clearance drops below this, about the rotor arm
+(h = 0.332 m, Table I): a rotor would touch a cloud point."""
+
+
 def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
     """One row of the summary table for a :class:`~paper_repro.simulation.SimulationResult`.
 
-    Times in ms (solves) and s (mission), thrusts in N, clearance in m. ``mission_time_s`` is
-    the time at which the last target was reached, NaN when the run stopped before that
-    (``simulated_time_s`` is then the time flown).
+    Times in ms (solves) and s (flight), thrusts in N, clearance in m.
+
+    * ``outcome`` (``completed``, ``stalled``, ``step_limit``) and ``completed``: every target
+      reached, or for a passage the finish line crossed; ``time_to_complete_s`` (NaN when not
+      completed); ``mission_time_s``, the time the last target was reached (NaN if not).
+    * ``collision``: clearance below :data:`COLLISION_CLEARANCE`; ``stalled``: the run ended
+      in a deadlock (see :class:`~paper_repro.config.SimulationParams`).
+    * chattering over the whole run (:func:`chattering_metrics`), with the total variation
+      also per second of flight (``tv_u_rate_N_per_s``), so runs of different lengths compare.
+    * solve times (median, p95, p99, max) and ``failed_solves``.
     """
     cfg = result.config
     ts = cfg.nmpc.ts
@@ -139,24 +151,37 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
     chat = chattering_metrics(result.u, ts, cutoff_hz)
     reached = np.asarray(result.reached)
     simulated = result.steps * ts
-    completed = bool(np.all(reached >= 0))
+    all_reached = bool(np.all(reached >= 0))
+    completed = result.outcome == "completed"
+    min_clearance = float(np.min(result.clearance))
+    wall = float(result.meta.get("wall_time_s", float("nan")))
     return {
-        "run": f"{cfg.simulation.scenario}/{cfg.distance.metric}",
+        "run": f"{result.scene.name}/{cfg.distance.metric}",
         "metric": cfg.distance.metric,
         "scenario": cfg.simulation.scenario,
-        "solver": getattr(cfg.nmpc, "solver", "reference"),
+        "scene": result.scene.name,
+        "scene_fingerprint": result.scene.fingerprint(),
+        "kind": cfg.simulation.kind,
+        "solver": cfg.nmpc.solver,
         "steps": int(result.steps),
         "simulated_time_s": simulated,
+        "outcome": result.outcome,
         "completed": completed,
         "targets_reached": f"{int(np.sum(reached >= 0))}/{len(reached)}",
-        "mission_time_s": float(reached[-1] * ts) if completed else float("nan"),
+        "time_to_complete_s": simulated if completed else float("nan"),
+        "mission_time_s": float(reached[-1] * ts) if all_reached else float("nan"),
+        "stalled": result.outcome == "stalled",
+        "collision": min_clearance < COLLISION_CLEARANCE,
+        "min_clearance_m": min_clearance,
         "solve_mean_ms": float(np.mean(solve_ms)),
         "solve_median_ms": float(np.median(solve_ms)),
         "solve_p95_ms": float(np.percentile(solve_ms, 95)),
+        "solve_p99_ms": float(np.percentile(solve_ms, 99)),
         "solve_max_ms": float(np.max(solve_ms)),
         "iterations_mean": float(np.mean(result.iterations)),
         "iterations_max": int(np.max(result.iterations)),
         "failed_solves": int(np.sum(~np.asarray(result.success, bool))),
+        "dropped_points": int(np.sum(result.dropped_points)),
         "tv_u_N": chat["total_variation"],
         "tv_u_rate_N_per_s": chat["total_variation"] / simulated,
         "max_abs_du_N": chat["max_abs_du"],
@@ -164,8 +189,8 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
         "hf_rms_N": chat["hf_rms"],
         "du_sign_changes": chat["du_sign_changes"],
         "cutoff_hz": chat["cutoff_hz"],
-        "min_clearance_m": float(np.min(result.clearance)),
-        "wall_time_s": float(result.meta.get("wall_time_s", float("nan"))),
+        "wall_time_s": wall,
+        "steps_per_s": result.steps / wall if wall > 0 else float("nan"),
     }
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from paper_repro import Config
+from paper_repro import Config, make_scene
 from paper_repro.metrics import (
     chattering_metrics,
     input_spectrum,
@@ -123,8 +123,8 @@ def test_invalid_signal_raises():
         chattering_metrics([1.0, np.nan], TS)
 
 
-def _result(steps=400, reached=(150, -1), metric="smooth"):
-    """A hand-made run: two targets, the first reached at step 150."""
+def _result(steps=400, reached=(150, -1), metric="smooth", outcome=None, clearance_min=1.5):
+    """A hand-made run of the paper scene: two targets, the first reached at step 150."""
     cfg = Config()
     targets = np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])
     k = np.arange(steps)
@@ -136,9 +136,11 @@ def _result(steps=400, reached=(150, -1), metric="smooth"):
         t=k * 0.01, x=x, u=u, x_a=x[:-1], u_a=np.full((steps, 4), 5.49),
         solve_time=np.linspace(0.01, 0.1, steps), iterations=np.full(steps, 7),
         success=np.arange(steps) % 100 != 0, status=np.full(steps, "Solve_Succeeded"),
-        clearance=np.linspace(5.0, 1.5, steps), target_index=index,
-        visible_points=np.zeros(steps, int), targets=targets, reached=np.array(reached),
-        config=cfg, meta={"wall_time_s": 12.0})
+        clearance=np.linspace(5.0, clearance_min, steps), target_index=index,
+        visible_points=np.zeros(steps, int), dropped_points=np.zeros(steps, int),
+        targets=targets, reached=np.array(reached), scene=make_scene("paper"), config=cfg,
+        outcome=outcome or ("completed" if min(reached) >= 0 else "step_limit"),
+        meta={"wall_time_s": 12.0})
 
 
 def test_tracking_error_uses_the_active_target():
@@ -158,8 +160,20 @@ def test_summary_row_reports_solve_times_failures_clearance_and_mission_time():
     assert row["min_clearance_m"] == pytest.approx(1.5)
     assert row["targets_reached"] == "1/2" and not row["completed"]
     assert np.isnan(row["mission_time_s"]) and row["simulated_time_s"] == pytest.approx(4.0)
+    assert not row["collision"] and not row["stalled"] and np.isnan(row["time_to_complete_s"])
     done = summary_row(_result(reached=(150, 390)))
     assert done["completed"] and done["mission_time_s"] == pytest.approx(3.9)
+    assert done["time_to_complete_s"] == pytest.approx(4.0)
+    assert done["steps_per_s"] == pytest.approx(400 / 12.0)
+
+
+def test_summary_row_flags_collision_below_the_rotor_arm_and_stalls():
+    """Collision is clearance < 0.35 m (about the 0.332 m arm), strictly; a stall is the
+    run's outcome, never a completion."""
+    assert summary_row(_result(clearance_min=0.349))["collision"]
+    assert not summary_row(_result(clearance_min=0.351))["collision"]
+    stalled = summary_row(_result(outcome="stalled"))
+    assert stalled["stalled"] and not stalled["completed"] and stalled["outcome"] == "stalled"
 
 
 def test_summary_table_has_one_row_per_run():
