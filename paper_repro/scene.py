@@ -254,8 +254,12 @@ def _cloud_array(name: str, cloud) -> np.ndarray:
 
 
 def make_scene(name: str, seed: int = 7) -> Scene:
-    """The named scene: ``"paper"`` (Section V mission) or ``"encounter"`` (one region, short)."""
-    builders = {"paper": paper_scene, "encounter": encounter_scene}
+    """The named scene: ``"paper"`` (Section V mission), ``"encounter"`` (one region, short)
+    or ``"random"`` (:func:`paper_repro.random_scenes.random_scene` of ``seed``: a seeded field
+    of regions across a straight flight, with a finish line for passages)."""
+    from .random_scenes import random_scene
+
+    builders = {"paper": paper_scene, "encounter": encounter_scene, "random": random_scene}
     if name not in builders:
         raise ValueError(f"scenario must be one of {tuple(builders)}, got {name!r}")
     return builders[name](seed)
