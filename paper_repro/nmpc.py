@@ -169,7 +169,7 @@ class TrackingNMPC:
         cfg = self.config
         p, b = cfg.nmpc, cfg.barrier
         n, nx, nu = p.horizon, N_STATES, N_INPUTS
-        f = rk4_discretisation(p.ts, cfg.quadrotor)
+        f = rk4_discretisation(p.prediction_step, cfg.quadrotor)
 
         X = ca.SX.sym("X", nx, n + 1)
         U = ca.SX.sym("U", nu, n)

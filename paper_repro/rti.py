@@ -335,7 +335,7 @@ def _linearisation(cfg: Config) -> ca.Function:
     """
     p, b, d = cfg.nmpc, cfg.barrier, cfg.distance
     n, ns = p.horizon, p.region_slots
-    f = rk4_discretisation(p.ts, cfg.quadrotor)
+    f = rk4_discretisation(p.prediction_step, cfg.quadrotor)
     hover = cfg.quadrotor.hover_thrust
     sq_q, sq_r, sq_t = (np.sqrt(np.asarray(v, float)) for v in (p.q, p.r, p.t))
     c = b.decay
