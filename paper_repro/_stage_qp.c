@@ -73,6 +73,8 @@ static void chol_solve(const double *l, int n, int ld, double *v) {
     }
 }
 
+static size_t nz_ints(int n, const int *nx, const int *nu);
+
 size_t stage_qp_workspace(int n, const int *nx, const int *nu, int nc) {
     size_t w = 0, nw = 0;
     int mx = 0;
@@ -82,15 +84,40 @@ size_t stage_qp_workspace(int n, const int *nx, const int *nu, int nc) {
         nw += s;
         mx = nx[j] > mx ? nx[j] : mx;
     }
-    /* g, pv, target, z0, lam0, dlam; scratch; lamc0, dlamc */
-    return w + 6 * nw + mx + 2 * (size_t)nc;
+    /* g, pv, target, z0, lam0, dlam; scratch; lamc0, dlamc; the nonzero lists of the AB
+     * columns (ints: one row index per entry of AB_j, one count per column), in doubles */
+    return w + 6 * nw + mx + 2 * (size_t)nc + (nz_ints(n, nx, nu) + 1) / 2;
+}
+
+/* Entries of the nonzero lists: rows of every AB_j column, then a count per column. */
+static size_t nz_ints(int n, const int *nx, const int *nu) {
+    size_t k = 0;
+    for (int j = 0; j < n; ++j) k += (size_t)(nx[j + 1] + 1) * (nx[j] + nu[j]);
+    return k;
+}
+
+/* The rows of the nonzero entries of every column of AB_j (idx, x1 slots per column) and
+ * their number (cnt). About two thirds of AB is structurally zero here (the carried
+ * equilibrium and barrier states), and the products below run over the nonzeros only, in
+ * the same order as a dense loop: skipped terms are exact zeros, so results are unchanged. */
+static void nonzeros(int n, const int *nx, const int *nu, const double *ab, int *idx,
+                     int *cnt) {
+    for (int j = 0; j < n; ++j) {
+        int s = nx[j] + nu[j], x1 = nx[j + 1];
+        for (int cc = 0; cc < s; ++cc, ab += x1, idx += x1) {
+            int m = 0;
+            for (int k = 0; k < x1; ++k)
+                if (ab[k] != 0.0) idx[m++] = k;
+            *cnt++ = m;
+        }
+    }
 }
 
 /* Factorise with the current active set. P_j, and M_j holding L_uu (Cholesky of the input
  * block) and K_j = -M_uu^{-1} M_ux in its (u, x) block. */
 static int factorise(int n, const int *nx, const int *nu, const double *h, const double *ab,
-                     int nc, const double *c, const signed char *act, double rho,
-                     double **P, double **M) {
+                     const int *idx, const int *cnt, int nc, const double *c,
+                     const signed char *act, double rho, double **P, double **M) {
     const double *hj;
     /* Stage N: P_N = H_N + rho C'C + rho on active entries. */
     {
@@ -121,27 +148,31 @@ static int factorise(int n, const int *nx, const int *nu, const double *h, const
     for (int j = n - 1; j >= 0; --j) {
         int x = nx[j], u = nu[j], s = x + u, x1 = nx[j + 1];
         const double *a = ab + ab_offs[j];
+        const int *ix = idx + ab_offs[j], *cn = cnt + off_w(nx, nu, j);
         const double *p1 = P[j + 1];
         double *m = M[j];
         memcpy(m, h + h_offs[j], sizeof(double) * s * s);
         int o = off_w(nx, nu, j);
         for (int i = 0; i < s; ++i)
             if (act[o + i]) m[i + i * s] += rho;
-        /* m += AB' P AB, one column of P AB at a time. */
+        /* m += AB' P AB, one column of P AB at a time, over the nonzeros of AB. */
         double t[x1];
         for (int cc = 0; cc < s; ++cc) {
+            if (!cn[cc]) continue;  /* a zero column of AB adds nothing */
             const double *acol = a + (size_t)cc * x1;
+            const int *ic = ix + (size_t)cc * x1;
             for (int r = 0; r < x1; ++r) t[r] = 0.0;
-            for (int k = 0; k < x1; ++k) {
+            for (int i = 0; i < cn[cc]; ++i) {
+                int k = ic[i];
                 double v = acol[k];
-                if (v == 0.0) continue;
                 const double *pk = p1 + (size_t)k * x1;
                 for (int r = 0; r < x1; ++r) t[r] += pk[r] * v;
             }
             for (int r = cc; r < s; ++r) {  /* lower triangle, then mirror */
                 const double *ar = a + (size_t)r * x1;
+                const int *ir = ix + (size_t)r * x1;
                 double acc = 0.0;
-                for (int k = 0; k < x1; ++k) acc += ar[k] * t[k];
+                for (int i = 0; i < cn[r]; ++i) acc += ar[ir[i]] * t[ir[i]];
                 m[r + cc * s] += acc;
             }
         }
@@ -179,8 +210,8 @@ static int factorise(int n, const int *nx, const int *nu, const double *h, const
 /* Linear terms -> solution z, for fixed factorisation. g is the full gradient (q plus the
  * augmented-Lagrangian terms), gc the terminal part C'(lamc - rho d). */
 static void vector_pass(int n, const int *nx, const int *nu, const double *ab,
-                        const double *b, const double *g, double **P, double **M,
-                        double *pv, double *scratch, double *z) {
+                        const int *idx, const int *cnt, const double *b, const double *g,
+                        double **P, double **M, double *pv, double *scratch, double *z) {
     size_t ab_offs[n + 1], b_offs[n + 1];
     size_t ab_off = 0, b_off = 0;
     for (int j = 0; j < n; ++j) {
@@ -208,11 +239,13 @@ static void vector_pass(int n, const int *nx, const int *nu, const double *ab,
             if (v == 0.0) continue;
             for (int r = 0; r < x1; ++r) w[r] += p1[r + (size_t)k * x1] * v;
         }
-        /* m = g_j + AB' w */
+        /* m = g_j + AB' w, over the nonzeros of AB */
+        const int *ix = idx + ab_offs[j], *cn = cnt + o;
         for (int r = 0; r < s; ++r) {
             double acc = g[o + r];
             const double *ar = a + (size_t)r * x1;
-            for (int k = 0; k < x1; ++k) acc += ar[k] * w[k];
+            const int *ir = ix + (size_t)r * x1;
+            for (int i = 0; i < cn[r]; ++i) acc += ar[ir[i]] * w[ir[i]];
             mv[r] = acc;
         }
         /* k_j = -M_uu^{-1} m_u (kept in mv's u slots); p_j = m_x + K' m_u */
@@ -256,7 +289,7 @@ static void vector_pass(int n, const int *nx, const int *nu, const double *ab,
 
 typedef struct {
     int n, nc, nw, max_passes;
-    const int *nx, *nu;
+    const int *nx, *nu, *idx, *cnt;  /* idx, cnt: nonzero lists of the AB columns */
     const double *h, *q, *ab, *b, *c, *d;
     double rho, eq_tol;
     double **P, **M, *g, *pv, *scratch;
@@ -268,8 +301,8 @@ typedef struct {
  * max_passes (return 2: the active set is inconsistent). */
 static int solve_eqp(const problem *p, const signed char *act, const double *target,
                      double *lam, double *lamc, double *z, qp_stats *st) {
-    int info = factorise(p->n, p->nx, p->nu, p->h, p->ab, p->nc, p->c, act, p->rho, p->P,
-                         p->M);
+    int info = factorise(p->n, p->nx, p->nu, p->h, p->ab, p->idx, p->cnt, p->nc, p->c, act,
+                         p->rho, p->P, p->M);
     if (info) return info;
     int on = off_w(p->nx, p->nu, p->n), xn = p->nx[p->n], nc = p->nc;
     for (int pass = 0; pass < p->max_passes; ++pass) {
@@ -281,7 +314,8 @@ static int solve_eqp(const problem *p, const signed char *act, const double *tar
             for (int k = 0; k < nc; ++k) acc += p->c[k + r * nc] * (lamc[k] - p->rho * p->d[k]);
             p->g[on + r] += acc;
         }
-        vector_pass(p->n, p->nx, p->nu, p->ab, p->b, p->g, p->P, p->M, p->pv, p->scratch, z);
+        vector_pass(p->n, p->nx, p->nu, p->ab, p->idx, p->cnt, p->b, p->g, p->P, p->M, p->pv,
+                    p->scratch, z);
         double res = 0.0;
         for (int i = 0; i < p->nw; ++i)
             if (act[i]) {
@@ -332,8 +366,8 @@ int stage_qp_solve(int n, const int *nx, const int *nu, const double *h, const d
             hj += (size_t)s * s;
         }
     }
-    problem pr = {n, nc, nw, max_passes, nx, nu, h, q, ab, b, c, d, rho * hmax, eq_tol, P, M,
-                  NULL, NULL, NULL, NULL, NULL};
+    problem pr = {n, nc, nw, max_passes, nx, nu, NULL, NULL, h, q, ab, b, c, d, rho * hmax,
+                  eq_tol, P, M, NULL, NULL, NULL, NULL, NULL};
     pr.g = wp; wp += nw;
     pr.pv = wp; wp += nw;
     double *target = wp; wp += nw;
@@ -343,6 +377,17 @@ int stage_qp_solve(int n, const int *nx, const int *nu, const double *h, const d
     double *lamc0 = wp; wp += nc;
     pr.dlamc = wp; wp += nc;
     pr.scratch = wp;
+    {
+        int mx = 0;
+        for (int j = 0; j <= n; ++j) mx = nx[j] > mx ? nx[j] : mx;
+        wp += mx;
+    }
+    /* AB is fixed during a solve: its nonzero lists serve every factorisation and pass. */
+    int *idx = (int *)wp, *cnt = idx;
+    for (int j = 0; j < n; ++j) cnt += (size_t)nx[j + 1] * (nx[j] + nu[j]);
+    nonzeros(n, nx, nu, ab, idx, cnt);
+    pr.idx = idx;
+    pr.cnt = cnt;
     memset(st, 0, sizeof(*st));
     for (int i = 0; i < nw; ++i) {
         if (!act[i]) lam[i] = 0.0;
