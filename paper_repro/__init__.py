@@ -5,7 +5,8 @@ Modules
 config      every default parameter (frozen dataclasses)
 model       quadrotor of Table I: continuous dynamics, RK4 prediction, plant integration
 distance    smoothed point-to-cloud distance D_{η,σ}, projection, Euclidean baseline
-scene       workspace, Halton point-cloud regions, virtual LiDAR
+scene       workspace, Halton point-cloud regions, virtual LiDAR (optionally imperfect)
+safety      checks of a mission before it flies, and the unsafe set-ups it reports
 """
 
 from .config import (
@@ -14,6 +15,7 @@ from .config import (
                      DistanceParams,
                      NMPCParams,
                      QuadrotorParams,
+                     SensorParams,
                      SimulationParams,
 )
 from .distance import (
@@ -31,7 +33,8 @@ __version__ = "0.1.0"
 
 __all__ = [
     "BarrierParams", "CloudWeights", "Config", "DistanceParams", "Lidar", "NMPCParams",
-    "QuadrotorParams", "Scene", "SimulationParams", "clearance", "continuous_dynamics",
-    "equilibrium", "euclidean_distance", "make_scene", "plant_step", "rk4_discretisation",
+    "QuadrotorParams", "Scene", "SensorParams", "SimulationParams", "clearance",
+    "continuous_dynamics", "equilibrium", "euclidean_distance", "make_scene", "plant_step",
+    "rk4_discretisation",
     "smooth_distance", "smooth_distance_gradient", "smooth_projection",
 ]

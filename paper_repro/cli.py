@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+import tempfile
+from pathlib import Path
 
 import numpy as np
 
@@ -18,8 +20,28 @@ from .config import Config
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m paper_repro", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    """Parse ``argv`` and run the command. A bad option or an inconsistent mission
+    (``ValueError``) prints one line ``error: <message>`` on stderr and returns 2, before
+    anything is built or flown."""
+    try:
+        return _main(argv)
+    except (_UsageError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+class _UsageError(Exception):
+    """An argparse error, raised instead of printing the usage and exiting."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse's own errors become one line, via main
+        raise _UsageError(f"{self.prog}: {message}")
+
+
+def _main(argv: list[str] | None) -> int:
+    parser = _Parser(prog="python -m paper_repro", description=__doc__,
+                     formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
 
     run = sub.add_parser("run", help="fly one closed-loop mission and save its result")
@@ -45,6 +67,11 @@ def main(argv: list[str] | None = None) -> int:
     _reproduce.add_arguments(reproduce)
 
     args = parser.parse_args(argv)
+    # Every option is checked here, before a scene, a controller or a flight is built.
+    if args.command == "run":
+        args.out = _output_directory("--out", args.out)
+    if args.command == "reproduce" and args.figures_dir is not None:
+        args.figures_dir = _output_directory("--figures-dir", args.figures_dir)
     if args.command == "reproduce":
         return _reproduce.main(args)
     if args.command == "run":
@@ -67,6 +94,23 @@ def _run(args) -> int:
     out = result.save(args.out)
     print(f"{result.summary()} -> {out}")
     return 0
+
+
+def _output_directory(option: str, text: str) -> Path:
+    """Create the directory ``text`` (if new) and check that a file can be written into it,
+    so that a run never flies and then fails to save; ``ValueError`` naming ``option``."""
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{option} must be a directory (existing or new), got the existing "
+                         f"file {text!r}")
+    try:  # permissions alone do not tell (root, read-only mounts): create and probe
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=path):
+            pass
+    except OSError as exc:
+        raise ValueError(f"{option} must be a writable directory, got {text!r} "
+                         f"({exc.strerror or exc})") from None
+    return path
 
 
 def _scene(args) -> int:

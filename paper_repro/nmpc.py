@@ -121,7 +121,9 @@ class TrackingNMPC:
         ----------
         x0 : (12,) current state.
         target : (3,) set-point y_t, m.
-        visible : per region, the (k_i, 3) points the LiDAR sees (empty arrays allowed).
+        visible : the LiDAR scan in its one accepted form (see :func:`check_visible`): a
+            list or tuple with one finite (k_i, 3) array per region, k_i ≥ 0 (what
+            :meth:`paper_repro.scene.Lidar.scan` returns); ``()`` when nothing is in view.
         previous : the plan of the previous sampling instant; the warm start is that plan
             shifted by one step (see :meth:`NMPCSolution.shifted`). Hover at the current
             position if omitted.
@@ -129,6 +131,7 @@ class TrackingNMPC:
         start = time.perf_counter()  # solve_time includes packing the scan: the whole call
         x0 = _as_vector("x0", x0, N_STATES)
         target = _as_vector("target", target, 3)
+        visible = check_visible(visible)
         params = np.concatenate([target, self.obstacle_parameters(visible, x0[:3])])
         guess = previous.shifted() if previous is not None else self.hover_guess(x0)
         w0 = self._pack(guess.x, guess.u, guess.x_a, guess.u_a)
@@ -255,7 +258,8 @@ def pack_scan(visible: Sequence[np.ndarray], position, config: Config) -> np.nda
 
     Parameters
     ----------
-    visible : per region, the (k_i, 3) visible points; regions with none are skipped.
+    visible : per region, the (k_i, 3) visible points (see :func:`check_visible`); regions
+        with none are skipped.
     position : (3,) UAV position, m. If more regions are visible than there are slots
         (``config.nmpc.region_slots``), the nearest regions are kept; if a region shows more
         points than a slot holds (``points_per_region``), the nearest points are kept.
@@ -268,8 +272,7 @@ def pack_scan(visible: Sequence[np.ndarray], position, config: Config) -> np.nda
     sigma, metric = config.distance.sigma, config.distance.metric
     slots, cap = config.nmpc.region_slots, config.nmpc.points_per_region
     ref = _as_vector("position", position, 3)
-    seen = [np.asarray(v, float).reshape(-1, 3) for v in visible]
-    seen = [v for v in seen if len(v)]
+    seen = [v for v in check_visible(visible) if len(v)]
     sq = [np.sum((v - ref) ** 2, axis=1) for v in seen]
     if len(seen) > slots:
         order = np.argsort([s.min() for s in sq])[:slots]
@@ -297,6 +300,47 @@ def pack_scan(visible: Sequence[np.ndarray], position, config: Config) -> np.nda
         else:
             blocks.append(np.concatenate([pts.ravel(order="F"), mask, [active]]))
     return np.concatenate(blocks)
+
+
+def check_visible(visible) -> tuple[np.ndarray, ...]:
+    """The one accepted form of a LiDAR scan, checked and never reshaped.
+
+    ``visible`` must be a list or tuple with one finite (k_i, 3) array (or nested list) per
+    region, k_i ≥ 0. A bare array, even (k, 3), is rejected: iterating over it would make
+    every point a region of its own. Returns the regions as float arrays (no copy when they
+    already are), in a tuple that later calls recognise as checked, so the check costs a few
+    microseconds once per solve. Raises ``ValueError`` naming ``visible[i]``.
+    """
+    if type(visible) is _CheckedScan:
+        return visible
+    if not isinstance(visible, (list, tuple)):
+        shape = f" of shape {visible.shape}" if isinstance(visible, np.ndarray) else ""
+        raise ValueError(f"visible must be a list or tuple with one (k_i, 3) array per region, "
+                         f"got {type(visible).__name__}{shape}; wrap one region's points in a "
+                         "list: [points]")
+    regions = []
+    for i, v in enumerate(visible):
+        arr = v if type(v) is np.ndarray and v.dtype == np.float64 else _region_array(i, v)
+        if arr.ndim != 2 or arr.shape[1] != 3:
+            raise ValueError(f"visible[{i}] must be a (k, 3) array of points (k ≥ 0), got "
+                             f"shape {arr.shape}")
+        if not np.isfinite(arr).all():
+            raise ValueError(f"visible[{i}] must hold finite coordinates only (drop the "
+                             "non-finite returns before solving)")
+        regions.append(arr)
+    return _CheckedScan(regions)
+
+
+class _CheckedScan(tuple):
+    """A scan that :func:`check_visible` has accepted (so it is not checked twice)."""
+
+
+def _region_array(i: int, value) -> np.ndarray:
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"visible[{i}] must be a (k, 3) array of points, got "
+                         f"{type(value).__name__}") from None
 
 
 def region_barrier(metric: str, eta: float, d_min: float, capacity: int):

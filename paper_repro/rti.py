@@ -35,7 +35,7 @@ import numpy as np
 from ._native import NativeFunction, compiler
 from .config import Config
 from .model import N_INPUTS, N_STATES, rk4_discretisation
-from .nmpc import NMPCSolution, _as_vector, pack_scan, region_barrier
+from .nmpc import NMPCSolution, _as_vector, check_visible, pack_scan, region_barrier
 from .stage_qp import StageQP
 
 N_EQ = 4  # artificial equilibrium: position (3) and yaw
@@ -139,6 +139,7 @@ class RealTimeNMPC:
         start = time.perf_counter()  # solve_time includes packing the scan: the whole call
         x0 = _as_vector("x0", x0, N_STATES)
         target = _as_vector("target", target, 3)
+        visible = check_visible(visible)
         lin, lin_cfg = self._linearisation_for(visible)
         params = np.concatenate([target, pack_scan(visible, x0[:3], lin_cfg)])
         guess = previous.reanchored(x0) if previous is not None else self.hover_guess(x0)

@@ -18,6 +18,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.stats import qmc
 
+from .config import SensorParams
+
 WORKSPACE_LOWER = np.array([-25.0, -25.0, 0.0])
 WORKSPACE_UPPER = np.array([25.0, 25.0, 25.0])
 
@@ -30,6 +32,10 @@ class Box:
 
     center: tuple[float, float, float]
     size: tuple[float, float, float]
+
+    def __post_init__(self):
+        _require_point("Box.center", self.center)
+        _require_point("Box.size", self.size, positive=True)
 
     def contains(self, p: np.ndarray) -> np.ndarray:
         half = np.asarray(self.size) / 2
@@ -48,6 +54,14 @@ class Cylinder:
     radius: float
     height: float
 
+    def __post_init__(self):
+        _require_point("Cylinder.base", self.base)
+        for name in ("radius", "height"):
+            value = getattr(self, name)
+            if not (_is_number(value) and math.isfinite(value) and value > 0):
+                raise ValueError(f"Cylinder.{name} must be a finite number > 0 (m), got "
+                                 f"{value!r}")
+
     def contains(self, p: np.ndarray) -> np.ndarray:
         b = np.asarray(self.base)
         radial = np.sum((p[..., :2] - b[:2]) ** 2, axis=-1) <= self.radius**2
@@ -61,9 +75,16 @@ class Cylinder:
 
 @dataclass(frozen=True)
 class Union:
-    """Points in any of ``parts``."""
+    """Points in any of ``parts`` (a non-empty tuple of shapes)."""
 
     parts: tuple
+
+    def __post_init__(self):
+        if not (isinstance(self.parts, (tuple, list)) and len(self.parts) > 0):
+            raise ValueError(f"Union.parts must be a non-empty tuple of shapes, got "
+                             f"{self.parts!r}")
+        for i, part in enumerate(self.parts):
+            _require_shape(f"Union.parts[{i}]", part)
 
     def contains(self, p: np.ndarray) -> np.ndarray:
         return np.any([s.contains(p) for s in self.parts], axis=0)
@@ -79,6 +100,10 @@ class Difference:
 
     outer: object
     inner: object
+
+    def __post_init__(self):
+        _require_shape("Difference.outer", self.outer)
+        _require_shape("Difference.inner", self.inner)
 
     def contains(self, p: np.ndarray) -> np.ndarray:
         return self.outer.contains(p) & ~self.inner.contains(p)
@@ -98,7 +123,10 @@ class Region:
     density: float = 3.0
 
     def __post_init__(self):
-        if not (math.isfinite(self.density) and self.density > 0):
+        if not (isinstance(self.name, str) and self.name):
+            raise ValueError(f"Region.name must be a non-empty str, got {self.name!r}")
+        _require_shape(f"Region {self.name!r} shape", self.shape)
+        if not (_is_number(self.density) and math.isfinite(self.density) and self.density > 0):
             raise ValueError(
                 f"density must be a finite number > 0 (points/m³), got {self.density!r}")
 
@@ -110,8 +138,9 @@ def halton_cloud(shape, density: float, seed: int) -> np.ndarray:
     the points outside the shape are dropped, so the density inside is ``density`` for any
     shape. Returns (m, 3), m.
     """
-    if not (math.isfinite(density) and density > 0):
+    if not (_is_number(density) and math.isfinite(density) and density > 0):
         raise ValueError(f"density must be a finite number > 0 (points/m³), got {density!r}")
+    _require_seed("seed", seed)
     lo, hi = shape.bounds()
     n = max(1, int(round(density * float(np.prod(hi - lo)))))
     sample = qmc.Halton(d=3, scramble=True, seed=seed).random(n)
@@ -146,6 +175,12 @@ class Scene:
     clouds: tuple | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self):
+        if not (isinstance(self.name, str) and self.name):
+            raise ValueError(f"Scene.name must be a non-empty str, got {self.name!r}")
+        if not (isinstance(self.regions, (tuple, list))
+                and all(isinstance(r, Region) for r in self.regions)):
+            raise ValueError(f"regions must be a tuple of Region, got {self.regions!r}")
+        _require_seed("seed", self.seed)
         start = np.asarray(self.start, float)
         targets = np.asarray(self.targets, float)
         if targets.ndim == 1:
@@ -246,10 +281,46 @@ def shape_from_dict(data: dict):
     raise ValueError(f"shape type must be Box, Cylinder, Union or Difference, got {kind!r}")
 
 
-def _cloud_array(name: str, cloud) -> np.ndarray:
-    arr = np.asarray(cloud, float)
-    if arr.ndim != 2 or arr.shape[1] != 3 or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be a finite (m, 3) array, got shape {arr.shape}")
+def _is_number(value) -> bool:
+    return (isinstance(value, (int, float, np.floating, np.integer))
+            and not isinstance(value, (bool, np.bool_)))
+
+
+def _require_point(name: str, value, positive: bool = False) -> None:
+    """Three finite numbers (each > 0 when ``positive``), given as a tuple or list."""
+    ok = (isinstance(value, (tuple, list, np.ndarray)) and np.shape(value) == (3,)
+          and all(_is_number(v) and math.isfinite(v) and (v > 0 or not positive)
+                  for v in value))
+    if not ok:
+        what = "finite numbers > 0 (m)" if positive else "finite numbers (m)"
+        raise ValueError(f"{name} must be 3 {what}, got {value!r}")
+
+
+def _require_shape(name: str, shape) -> None:
+    if not isinstance(shape, (Box, Cylinder, Union, Difference)):
+        raise ValueError(f"{name} must be a Box, Cylinder, Union or Difference, got {shape!r}")
+
+
+def _require_seed(name: str, seed) -> None:
+    if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_))
+            and seed >= 0):
+        raise ValueError(f"{name} must be an integer >= 0, got {seed!r}")
+
+
+def _cloud_array(name: str, cloud, allow_empty: bool = False) -> np.ndarray:
+    """``cloud`` as a float (m, 3) array, checked (never reshaped)."""
+    try:
+        arr = np.asarray(cloud, float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an (m, 3) array of points, got "
+                         f"{type(cloud).__name__}") from None
+    if arr.ndim != 2 or arr.shape[1] != 3 or (arr.shape[0] == 0 and not allow_empty):
+        raise ValueError(f"{name} must be an (m, 3) array of points (m ≥ "
+                         f"{0 if allow_empty else 1}), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
+        raise ValueError(f"{name} must hold finite coordinates only, got {len(bad)} "
+                         f"non-finite row(s), the first at row {bad[0]}")
     return arr
 
 
@@ -311,30 +382,93 @@ def encounter_scene(seed: int = 7) -> Scene:
 # --- LiDAR ----------------------------------------------------------------------------------
 
 class Lidar:
-    """Virtual spherical LiDAR of range r_s (m) over a scene's clouds.
+    """Virtual spherical LiDAR of range r_s (m) over a scene's clouds, perfect or imperfect.
+
+    Parameters
+    ----------
+    clouds : sequence with one (m_i, 3) finite array per region, m (m_i ≥ 0). Shapes are
+        checked, never reshaped: a bare (m, 3) array is rejected (wrap it in a list).
+    range_ : r_s > 0, m.
+    noise : :class:`~paper_repro.config.SensorParams`, or ``None`` for a perfect sensor (as
+        is a ``SensorParams`` with its defaults). See :meth:`scan` for the model.
 
     One KD-tree over all points is built at construction; :meth:`scan` is a ball query.
     """
 
-    def __init__(self, clouds, range_: float = 3.0):
-        if not (math.isfinite(range_) and range_ > 0):
+    def __init__(self, clouds, range_: float = 3.0, noise: SensorParams | None = None):
+        if not (_is_number(range_) and math.isfinite(range_) and range_ > 0):
             raise ValueError(f"lidar range must be a finite number > 0 (m), got {range_!r}")
+        if isinstance(clouds, np.ndarray) or not isinstance(clouds, (tuple, list)):
+            raise ValueError("clouds must be a sequence (list or tuple) with one (m, 3) array "
+                             f"per region, got {type(clouds).__name__}"
+                             + (f" of shape {clouds.shape}; wrap a single cloud in a list"
+                                if isinstance(clouds, np.ndarray) else ""))
+        if noise is not None and not isinstance(noise, SensorParams):
+            raise ValueError(f"noise must be a SensorParams or None, got {noise!r}")
         self.range = float(range_)
-        self.clouds = tuple(np.asarray(c, float).reshape(-1, 3) for c in clouds)
+        self.clouds = tuple(_cloud_array(f"clouds[{i}]", c, allow_empty=True)
+                            for i, c in enumerate(clouds))
+        self.noise = noise if noise is not None else SensorParams()
         self._labels = np.concatenate(
             [np.full(len(c), i) for i, c in enumerate(self.clouds)] or [np.zeros(0, int)])
         points = np.concatenate(self.clouds) if self.clouds else np.zeros((0, 3))
         self._points = points
         self._tree = cKDTree(points) if len(points) else None
+        self.reset()
+
+    def reset(self) -> None:
+        """Reseed the noise generator with ``noise.seed``: the next scans replay the same
+        noise as after construction (a clean slate for a rerun)."""
+        self._rng = np.random.default_rng(self.noise.seed)
 
     def scan(self, position) -> list[np.ndarray]:
         """Visible points of each region: a list (one entry per region) of (k_i, 3) arrays,
-        k_i = 0 for a region out of range. Points are returned in their cloud order."""
+        k_i = 0 for a region out of range.
+
+        A perfect sensor (the default) returns exactly the points within r_s, in their cloud
+        order, and never draws from the generator. With ``noise``, per scan, in this order:
+
+        * **dropout**: each point within r_s is lost with probability ``dropout``;
+        * **range noise**: each kept point p is moved along its ray from the sensor s to
+          s + max(0, ‖p − s‖ + ε)·(p − s)/‖p − s‖, ε ~ 𝒩(0, ``range_noise``²) (so a
+          noisy point may lie slightly beyond r_s, as a real return would);
+        * **spurious returns**: K ~ Poisson(``spurious_rate``) points uniform in the ball of
+          radius r_s about s, each appended to the region whose cloud holds the point
+          nearest to it (the region a segmentation by nearest obstacle would give it). A
+          scene without any point has no region to give them to, and they are dropped.
+        """
         p = np.asarray(position, float)
         if p.shape != (3,) or not np.all(np.isfinite(p)):
             raise ValueError(f"position must be a finite (3,) array, got {p!r}")
         if self._tree is None:
             return [np.zeros((0, 3)) for _ in self.clouds]
         idx = np.sort(np.asarray(self._tree.query_ball_point(p, self.range), dtype=int))
+        if not self.noise.perfect:
+            return self._noisy_scan(p, idx)
         labels = self._labels[idx]
         return [self._points[idx[labels == i]] for i in range(len(self.clouds))]
+
+    def _noisy_scan(self, p: np.ndarray, idx: np.ndarray) -> list[np.ndarray]:
+        noise, rng = self.noise, self._rng
+        # Every draw is made whatever the parameters, so that the stream a given seed produces
+        # does not depend on which imperfections are switched on.
+        kept = rng.random(len(idx)) >= noise.dropout
+        eps = rng.standard_normal(len(idx)) * noise.range_noise
+        idx, eps = idx[kept], eps[kept]
+        ray = self._points[idx] - p
+        dist = np.linalg.norm(ray, axis=1)
+        scale = np.divide(np.maximum(dist + eps, 0.0), dist, out=np.ones_like(dist),
+                          where=dist > 0)
+        points = p + ray * scale[:, None]
+        labels = self._labels[idx]
+
+        k = int(rng.poisson(noise.spurious_rate))
+        direction = rng.standard_normal((k, 3))
+        direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+        radius = self.range * rng.random(k) ** (1.0 / 3.0)  # uniform in volume
+        spurious = p + direction * radius[:, None]
+        if k:
+            _, nearest = self._tree.query(spurious)
+            points = np.vstack([points, spurious])
+            labels = np.concatenate([labels, self._labels[nearest]])
+        return [points[labels == i] for i in range(len(self.clouds))]
