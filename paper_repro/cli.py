@@ -3,6 +3,7 @@
     python -m paper_repro run --scenario encounter --metric smooth --max-steps 500 --out results/x
     python -m paper_repro scene --scenario paper
     python -m paper_repro reproduce [--quick]
+    python -m paper_repro study monte_carlo [--quick] [--workers N] [--scheduler ADDRESS]
 """
 
 from __future__ import annotations
@@ -66,6 +67,13 @@ def _main(argv: list[str] | None) -> int:
         description=_reproduce.DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     _reproduce.add_arguments(reproduce)
 
+    from . import study as _study
+
+    study = sub.add_parser(
+        "study", help="fly a study (random scenes, parameter sweeps) on Dask; table + figures",
+        description=_study.__doc__.split("\n\n")[0])
+    _study.add_arguments(study)
+
     args = parser.parse_args(argv)
     # Every option is checked here, before a scene, a controller or a flight is built.
     if args.command == "run":
@@ -74,6 +82,8 @@ def _main(argv: list[str] | None) -> int:
         args.figures_dir = _output_directory("--figures-dir", args.figures_dir)
     if args.command == "reproduce":
         return _reproduce.main(args)
+    if args.command == "study":
+        return _study.main(args)
     if args.command == "run":
         return _run(args)
     return _scene(args)

@@ -1,0 +1,177 @@
+"""The study engine: specs as data, the shared run cache, Dask execution, failures as rows.
+
+The runs are tiny passages (a few dozen steps through random scenes, one LiDAR slot of 64
+points) so that the properties, not the flights, are what is tested: the same rows with one
+worker or two, bit-identical trajectories, a killed worker or driver losing nothing.
+"""
+
+import dataclasses
+import os
+import signal
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from paper_repro import Config, NMPCParams, random_scenes, runs
+from paper_repro import study as S
+from paper_repro.simulation import SimulationResult, simulate
+
+TINY = Config(nmpc=NMPCParams(region_slots=1, points_per_region=64))
+STEPS = 60
+
+
+def _study(n=3, name="tiny", steps=STEPS):
+    specs = [S.passage_spec(seed, metric, max_steps=steps, base=TINY)
+             for metric in ("smooth", "euclidean") for seed in range(n)]
+    return S.Study(name, tuple(specs))
+
+
+def _flight_columns(table):
+    return table.drop(columns=[c for c in S.TIMING_COLUMNS if c in table.columns])
+
+
+# --- specs ----------------------------------------------------------------------------------
+
+def test_studies_are_data_with_unique_names_and_one_name_per_flight():
+    mc, sweep = S.monte_carlo(), S.eta_sweep()
+    assert len(mc.specs) == 200 and len(sweep.specs) == 9 * 20
+    assert len(S.eta_sweep(grid=True).specs) == 19 * 20
+    # The same flight (printed η, σ; the Euclidean baseline) has the same name and key in
+    # both studies, so they share its cache folder.
+    shared = {s.name: s.key for s in mc.specs} | {}
+    both = [s for s in sweep.specs if s.name in shared]
+    assert len(both) == 2 * 20 and all(shared[s.name] == s.key for s in both)
+    assert all(s.config.simulation.kind == "passage" for s in mc.specs + sweep.specs)
+
+
+def test_bad_study_input_is_named():
+    with pytest.raises(ValueError, match="scenes"):
+        S.monte_carlo(scenes=0)
+    with pytest.raises(ValueError, match="etas"):
+        S.eta_sweep(etas=(0.1, -0.2))
+    with pytest.raises(ValueError, match="unique"):
+        spec = S.passage_spec(0)
+        S.Study("x", (spec, spec))
+    with pytest.raises(ValueError, match="workers"):
+        S.run_study(_study(1), workers=-1)
+    with pytest.raises(ValueError, match="scheduler"):
+        S.run_study(_study(1), scheduler="localhost")
+    with pytest.raises(ValueError, match="study must be one of"):
+        S.make_study("nope")
+
+
+# --- results carry their scene --------------------------------------------------------------
+
+def test_a_saved_random_run_redraws_against_its_own_clouds_after_the_generator_changes(
+        tmp_path, monkeypatch):
+    cfg = S.passage_config(TINY, seed=4, max_steps=20)
+    result = simulate(cfg, progress=False)
+    result.save(tmp_path / "run")
+    flown = [c.copy() for c in result.scene.clouds]
+    # The generator's defaults change (denser clouds): the scene rebuilt by name differs ...
+    denser = dataclasses.replace(random_scenes.RandomSceneParams(), density=4.0)
+    monkeypatch.setattr(random_scenes, "RandomSceneParams", lambda: denser)
+    rebuilt = runs.RunSpec("x", cfg, 20).scene()
+    assert rebuilt.fingerprint() != result.scene.fingerprint()
+    # ... but the saved run still carries the clouds it flew among, point for point.
+    loaded = SimulationResult.load(tmp_path / "run")
+    assert loaded.scene.fingerprint() == result.scene.fingerprint()
+    assert all(np.array_equal(a, b) for a, b in zip(loaded.scene.clouds, flown, strict=True))
+    np.testing.assert_array_equal(loaded.x, result.x)
+
+
+# --- execution ------------------------------------------------------------------------------
+
+def test_two_workers_give_exactly_the_rows_and_trajectories_of_one(tmp_path):
+    """Controllers are reused across flights in a worker and reset before each, so neither
+    the number of workers nor the order of the runs changes a single bit."""
+    one = S.run_study(_study(), out=tmp_path / "one", workers=1, progress=False,
+                      log=lambda line: None)
+    two = S.run_study(_study(), out=tmp_path / "two", workers=2, progress=False,
+                      log=lambda line: None)
+    assert (one.table["status"] == "ok").all() and (two.table["status"] == "ok").all()
+    assert two.table["worker"].nunique() == 2  # both workers flew
+    pd.testing.assert_frame_equal(_flight_columns(one.table), _flight_columns(two.table))
+    for a, b in zip(one.table["result_dir"], two.table["result_dir"], strict=True):
+        ra, rb = SimulationResult.load(a), SimulationResult.load(b)
+        assert np.array_equal(ra.x, rb.x) and np.array_equal(ra.u, rb.u)
+    assert (tmp_path / "one" / "table.parquet").is_file()
+    pd.testing.assert_frame_equal(S.load_table(tmp_path / "one"), one.table)
+
+
+def test_a_killed_worker_loses_nothing(tmp_path):
+    """One worker process is SIGKILLed after the first row: Dask reschedules its task, the
+    study completes with every row present once."""
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=":0", silence_logs=40) as cluster, \
+            Client(cluster) as client:
+        pids = list(client.run(os.getpid).values())
+        killed = []
+
+        def kill_one(i, row):
+            if not killed:
+                os.kill(pids[0], signal.SIGKILL)
+                killed.append(pids[0])
+
+        result = S.run_study(_study(4, steps=120), out=tmp_path / "s", client=client,
+                             progress=False, log=lambda line: None, on_row=kill_one)
+    assert killed
+    table = result.table
+    assert len(table) == 8 and table["name"].is_unique
+    assert (table["status"] == "ok").all(), table["error"].tolist()
+
+
+def test_an_interrupted_study_redoes_only_the_unfinished_runs(tmp_path):
+    study = _study(3)
+
+    class DriverKilled(Exception):
+        pass
+
+    def stop_after_two(i, row):
+        if sum(runs.is_cached(s.directory(tmp_path / "runs")) for s in study.specs) >= 2:
+            raise DriverKilled
+
+    with pytest.raises(DriverKilled):
+        S.run_study(study, out=tmp_path, workers=0, progress=False, log=lambda line: None,
+                    on_row=stop_after_two)
+    done_before = sum(runs.is_cached(s.directory(tmp_path / "runs")) for s in study.specs)
+    assert 2 <= done_before < len(study.specs)
+    again = S.run_study(study, out=tmp_path, workers=0, progress=False, log=lambda line: None)
+    assert int(again.table["simulated"].sum()) == len(study.specs) - done_before
+    assert (again.table["status"] == "ok").all()
+
+
+def test_a_run_that_raises_inside_a_worker_is_a_failed_row(tmp_path, monkeypatch):
+    """In-process Dask workers (threads) share the monkeypatched closed loop; the failure
+    becomes a row with its message and the other runs complete."""
+    from distributed import Client, LocalCluster
+
+    real_fly = runs.fly
+
+    def fly(spec, controller=None, progress=None):
+        if spec.name.endswith("s001") and "euclidean" in spec.name:
+            raise FloatingPointError("the plant diverged")
+        return real_fly(spec, controller=controller, progress=progress)
+
+    monkeypatch.setattr(runs, "fly", fly)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address=":0", silence_logs=40) as cluster, \
+            Client(cluster) as client:
+        result = S.run_study(_study(2), out=tmp_path, client=client, progress=False,
+                             log=lambda line: None)
+    failed = result.failed
+    assert list(failed["name"]) == ["passage-euclidean-s001"]
+    assert failed["error"].iloc[0] == "FloatingPointError: the plant diverged"
+    assert (result.table.drop(failed.index)["status"] == "ok").all()
+    assert len(result.table) == 4
+
+
+def test_progress_lines_when_not_a_terminal(tmp_path):
+    lines = []
+    S.run_study(_study(1), out=tmp_path, workers=0, progress=False, log=lines.append)
+    assert lines[0] == "study tiny: 2 runs"
+    assert any(line.startswith("study tiny: 2/2 runs, 0 failed") for line in lines)
+    assert "2 runs (2 flown, 0 failed)" in lines[-1]
