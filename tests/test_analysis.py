@@ -1,0 +1,73 @@
+"""Statistics over study tables: rates and their intervals, paired comparisons, sweeps."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+from paper_repro import analysis as A
+
+
+def _table(n=30, seed=0):
+    """Paired runs on n scenes: the Euclidean variant chatters 10× more (per scene, with
+    noise), clears by 0.1 m more, and collides on two scenes; one smooth run failed."""
+    rng = np.random.default_rng(seed)
+    base = rng.uniform(1.0, 2.0, n)
+    rows = []
+    for s in range(n):
+        for metric, factor in (("smooth", 1.0), ("euclidean", 10.0)):
+            failed = metric == "smooth" and s == 0
+            rows.append({
+                "scene_seed": s, "metric": metric, "eta": 0.3 if metric == "smooth" else 0.0,
+                "sigma": 0.8 if metric == "smooth" else np.nan,
+                "status": "failed" if failed else "ok",
+                "outcome": None if failed else ("completed" if s % 5 else "stalled"),
+                "completed": False if failed else bool(s % 5), "stalled": not failed and s % 5 == 0,
+                "collision": metric == "euclidean" and s in (3, 7),
+                "tv_u_rate_N_per_s": np.nan if failed else base[s] * factor * rng.uniform(0.9, 1.1),
+                "hf_energy_fraction": 0.05 * factor / 10, "max_abs_du_N": factor * 0.1,
+                "min_clearance_m": 1.3 + (0.1 if metric == "euclidean" else 0.0),
+                "time_to_complete_s": 50.0, "solve_median_ms": 0.6, "solve_p99_ms": 1.2})
+    return pd.DataFrame(rows)
+
+
+def test_rates_count_every_run_and_match_the_exact_binomial_interval():
+    r = A.rates(_table()).set_index(["metric", "event"])
+    e = r.loc[("euclidean", "collision")]
+    assert (e["n"], e["k"]) == (30, 2)
+    ci = stats.binomtest(2, 30).proportion_ci(0.95, method="exact")
+    assert e["low"] == pytest.approx(ci.low) and e["high"] == pytest.approx(ci.high)
+    smooth = r.loc["smooth"]
+    assert smooth.loc["failed", "k"] == 1 and smooth.loc["stalled", "k"] == 5
+    # Every run is in exactly one outcome class.
+    assert smooth.loc[["completed", "stalled", "step_limit", "failed"], "k"].sum() == 30
+
+
+def test_paired_comparison_recovers_the_ratio_and_uses_only_scenes_where_both_flew():
+    p = A.paired(_table()).set_index("measure")
+    tv = p.loc["tv_u_rate_N_per_s"]
+    assert tv["scenes"] == 29  # scene 0's smooth run failed
+    assert tv["low"] <= tv["median_effect"] <= tv["high"]
+    assert 9.0 < tv["low"] and tv["high"] < 11.0 and tv["wilcoxon_p"] < 1e-6
+    clear = p.loc["min_clearance_m"]
+    assert clear["effect"] == "difference b − a"
+    assert clear["median_effect"] == pytest.approx(0.1)
+
+
+def test_paired_comparison_is_reproducible():
+    a, b = A.paired(_table(), seed=3), A.paired(_table(), seed=3)
+    pd.testing.assert_frame_equal(a, b)
+
+
+def test_by_setting_has_one_row_per_setting_with_intervals():
+    s = A.by_setting(_table())
+    assert len(s) == 2 and set(s["metric"]) == {"smooth", "euclidean"}
+    row = s[s["metric"] == "euclidean"].iloc[0]
+    assert row["collision_rate"] == pytest.approx(2 / 30)
+    assert row["tv_u_rate_N_per_s_low"] <= row["tv_u_rate_N_per_s"] <= row[
+        "tv_u_rate_N_per_s_high"]
+
+
+def test_ecdf_is_monotone_and_ends_at_one():
+    x, f = A.ecdf([3.0, 1.0, np.nan, 2.0])
+    assert list(x) == [1.0, 2.0, 3.0] and f[-1] == 1.0 and np.all(np.diff(f) > 0)
