@@ -39,6 +39,7 @@ import numpy as np
 from ._native import build_library
 
 _D = ctypes.POINTER(ctypes.c_double)
+_ARGS = ("h", "q", "ab", "b", "c", "d", "lb", "ub")  # solve()'s arrays, in order
 STATUS = {0: "solved", 1: "active_set_not_found", 2: "infeasible_or_inconsistent",
           3: "not_positive_definite", 4: "workspace"}
 
@@ -125,6 +126,14 @@ class StageQP:
         self.lam = np.zeros(self.nw)
         self.lam_c = np.zeros(self.nc)
         self._stats = _Stats()
+        # The call's working copy of the active set and multipliers (kept only on success),
+        # and the addresses of every buffer that never moves: a ctypes address costs about
+        # a microsecond to look up, a dozen of them per call add up.
+        self._trial = (np.zeros_like(self.active), np.zeros_like(self.lam),
+                       np.zeros_like(self.lam_c))
+        self._fixed = (self.nx.ctypes.data, self.nu.ctypes.data,
+                       *(a.ctypes.data for a in self._trial), self._work.ctypes.data,
+                       self._work.size, self.z.ctypes.data, ctypes.byref(self._stats))
 
     def reset(self) -> None:
         """Forget the active set and the multipliers (the next call starts from none)."""
@@ -148,21 +157,20 @@ class StageQP:
         """h: H blocks, ab: [A_j B_j] blocks (each column-major, concatenated), q, b, d, lb,
         ub: vectors (±inf for no bound); c: C column-major. Arrays must be contiguous float64
         of the sizes the structure implies; the returned ``z`` is a copy."""
-        args = {"h": h, "q": q, "ab": ab, "b": b, "c": c, "d": d, "lb": lb, "ub": ub}
-        for name, a in args.items():
+        args = (h, q, ab, b, c, d, lb, ub)
+        for name, a in zip(_ARGS, args):
             if not (isinstance(a, np.ndarray) and a.dtype == np.float64
                     and a.flags.c_contiguous and a.size == self._expected[name]):
                 raise ValueError(f"{name} must be a contiguous float64 array of "
                                  f"{self._expected[name]} entries")
-        p = {name: a.ctypes.data for name, a in args.items()}
-        active, lam, lam_c = self.active.copy(), self.lam.copy(), self.lam_c.copy()
+        h, q, ab, b, c, d, lb, ub = (a.ctypes.data for a in args)
+        active, lam, lam_c = self._trial
+        active[:], lam[:], lam_c[:] = self.active, self.lam, self.lam_c
+        nx, nu, p_active, p_lam, p_lam_c, work, work_size, z, stats = self._fixed
         info = self._lib.stage_qp_solve(
-            self.horizon, self.nx.ctypes.data, self.nu.ctypes.data, p["h"], p["q"], p["ab"],
-            p["b"], self.nc, p["c"], p["d"], p["lb"], p["ub"], active.ctypes.data,
-            lam.ctypes.data, lam_c.ctypes.data,
+            self.horizon, nx, nu, h, q, ab, b, self.nc, c, d, lb, ub, p_active, p_lam, p_lam_c,
             self.rho, self.eq_tol, self.kkt_tol, self.max_outer, self.max_passes,
-            self._work.ctypes.data, self._work.size, self.z.ctypes.data,
-            ctypes.byref(self._stats))
+            work, work_size, z, stats)
         s = self._stats
         if info == 0:  # keep the active set for the next call only when it is right
             self.active[:], self.lam[:], self.lam_c[:] = active, lam, lam_c

@@ -131,10 +131,17 @@ def test_a_smaller_lidar_capacity_gives_the_same_step(scene, metric):
     assert 0 < max(counts) <= 16
     ladder = RealTimeNMPC(_config(metric))
     full = RealTimeNMPC(_config(metric), capacities=())
-    assert [cap for cap, _, _ in ladder._lins] == [16, 48]
+    assert [cap for cap, _, _ in ladder._lins] == [1, 16, 48]
     assert ladder._linearisation_for(visible)[1].nmpc.points_per_region == 16
     a = ladder.solve(x0, scene.targets[0], visible)
     b = full.solve(x0, scene.targets[0], visible)
+    np.testing.assert_allclose(a.u, b.u, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
+    # Nothing in range: the capacity-1 linearisation, still the same step.
+    empty = [np.empty((0, 3))]
+    assert ladder._linearisation_for(empty)[1].nmpc.points_per_region == 1
+    a = ladder.solve(x0, scene.targets[0], empty)
+    b = full.solve(x0, scene.targets[0], empty)
     np.testing.assert_allclose(a.u, b.u, rtol=0, atol=1e-10)
     np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
     with pytest.raises(ValueError, match="capacities"):
