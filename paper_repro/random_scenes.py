@@ -10,19 +10,21 @@ everything, clouds included, is rebuilt exactly from the seed.
 The scene serves two kinds of run: a *mission* (reach the target, as the paper) and a
 *passage*, which ends at the scene's finish line, ``finish_margin`` (2 m) past the farthest
 cloud point of the field along the line. The start lies ``lead_in`` (4 m) before the field
-and the target ``run_out`` (40 m) beyond it, so that the UAV crosses the field at the speed of
-the paper's mission (under the printed weights the speed is about the distance to the target
-over 150 s, ≈0.3 m/s here); a passage is then ``lead_in`` + field + 2 m ≈ 10-18 m, i.e.
-40-60 s or 4,000-6,000 steps of 10 ms.
+and the target ``run_out`` (40 m) beyond it, so that the UAV crosses the field at about the
+speed of the paper's mission (under the printed weights the speed is about the distance to
+the target over 150 s, ≈0.3 m/s here). A passage is then ``lead_in`` + field + 2 m, 8-17 m
+(median 14 m) along the line, i.e. 30-60 s or 3,000-6,000 steps of 10 ms before detours.
 
 Geometry. The flight line is horizontal, at altitude h, with a heading drawn at random among
-those for which the start, the field and the target fit in the workspace with a margin (with a
-40 m run-out the headings lie within about ±15° of a diagonal). Shapes are axis-aligned boxes
-and vertical cylinders, so they are built in the frame of the axis closest to the heading
-("along" the flight and "across" it); the line crosses them obliquely. Every region covers the
-flight altitude; its top is at most ``altitude[1] + height[1]`` (16 m by default), so a
-detour over the field always exists, and its width is bounded, so a detour sideways exists
-too.
+those for which the start, the field and the target fit in the workspace with a margin: with
+a 40 m run-out the flight is 46-56 m long, more than the 48 m available along an axis, so the
+headings lie between about 10° and 80° off the x axis (modulo 90°, most near a diagonal).
+Shapes are axis-aligned boxes and vertical cylinders, so they are built in the frame of the
+axis closest to the heading ("along" the flight and "across" it) and the line crosses them
+obliquely. The first region is placed on the line, the others up to ``lateral_spread`` to
+either side of it. Every region covers the flight altitude; its top is at most
+``altitude[1] + height[1]`` (16 m by default), so a detour over the field always exists, and
+its width is bounded, so a detour sideways exists too.
 """
 
 from __future__ import annotations
@@ -61,7 +63,9 @@ class RandomSceneParams:
         default (2, 6).
     depth : (low, high), m, depth of the field along the line: every region's bounding box
         lies in a slab of this thickness across the line (the field is at most this deep).
-        Default (4, 12) m.
+        A field of more regions is deeper: the depth is drawn uniformly from
+        [low + ½·f·(high − low), high], f = (n − regions[0]) / (regions[1] − regions[0]) for
+        n regions (f = 0 when the count is fixed). Default (4, 12) m.
     lateral_spread : m, regions other than the one that blocks the line are offset across the
         line by at most this much (their anchor, not their extent). Default 8 m.
     width : (low, high), m, extent across the line of boxes, walls and channels. Default
@@ -89,12 +93,14 @@ class RandomSceneParams:
         Default 3 m (the LiDAR range r_s).
     blocking_distance : m, the straight segment start → target counts as blocked when it
         passes within this distance of a cloud point. Default 0.5 m.
-    separation : m, minimum gap between the bounding boxes of two regions. Default 1 m.
+    separation : m, minimum gap between two regions (between the bounding boxes of their
+        parts: the two boxes of an L- or T-wall, the outer box of a U-channel or a window).
+        Default 1 m.
     workspace_margin : m, the start, the target and every region keep this distance from the
         side walls of the workspace. Default 1 m.
     kinds : region kinds to draw from, a non-empty subset of :data:`REGION_KINDS`; the
         region that blocks the line and the others are drawn uniformly among them.
-    max_attempts : int ≥ 1, layouts tried before :func:`random_scene` gives up. Default 200.
+    max_attempts : int ≥ 1, layouts tried before :func:`random_scene` gives up. Default 500.
     """
 
     regions: tuple[int, int] = (2, 6)
@@ -116,7 +122,7 @@ class RandomSceneParams:
     separation: float = 1.0
     workspace_margin: float = 1.0
     kinds: tuple[str, ...] = REGION_KINDS
-    max_attempts: int = 200
+    max_attempts: int = 500
 
     def __post_init__(self):
         if not (_is_pair(self.regions)
@@ -183,7 +189,7 @@ def random_scene(seed: int, params: RandomSceneParams | None = None) -> Scene:
       start is ``lead_in`` before the field's nearest face along the line;
     * every region lies in the workspace, the start, the target and the finish point lie
       ``workspace_margin`` inside its side walls;
-    * region bounding boxes are at least ``separation`` apart.
+    * regions are at least ``separation`` apart (bounding boxes of their parts).
 
     Raises
     ------
@@ -242,7 +248,8 @@ def _try_layout(rng: np.random.Generator, seed: int, kinds: tuple[str, ...],
     v = np.array([-u[1], u[0], 0.0])
     frame = _nearest_axis_frame(u)
     h = rng.uniform(*p.altitude)
-    depth = rng.uniform(*p.depth)
+    crowding = (len(kinds) - p.regions[0]) / max(1, p.regions[1] - p.regions[0])
+    depth = rng.uniform(p.depth[0] + 0.5 * crowding * (p.depth[1] - p.depth[0]), p.depth[1])
 
     # Field in a frame whose origin is the slab's entry point on the line (xy), at z = 0.
     placed: list[tuple[str, object]] = []
@@ -288,8 +295,8 @@ def _try_layout(rng: np.random.Generator, seed: int, kinds: tuple[str, ...],
             or np.min(np.linalg.norm(points - start, axis=1)) < p.clearance
             or np.min(np.linalg.norm(points - target, axis=1)) < p.clearance):
         return None
-    return Scene(f"random-{seed}", regions, tuple(start), (tuple(target),), seed,
-                 (tuple(finish), tuple(u)), clouds)
+    return Scene(f"random-{seed}", regions, _floats(start), (_floats(target),), seed,
+                 (_floats(finish), _floats(u)), clouds)
 
 
 def _nearest_axis_frame(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -320,7 +327,7 @@ def _vertical_extent(rng, p: RandomSceneParams, h: float) -> tuple[float, float]
     top = max(bottom + height, h + 0.5)
     if bottom < 1.0:
         bottom = 0.0
-    return bottom, top - bottom
+    return float(bottom), float(top - bottom)
 
 
 def _box(rng, p, frame, h):
@@ -332,7 +339,7 @@ def _box(rng, p, frame, h):
 
 def _cylinder(rng, p, frame, h):
     """A vertical column; the line passes within 0.6·radius of its axis."""
-    r = rng.uniform(*p.radius)
+    r = float(rng.uniform(*p.radius))
     z, height = _vertical_extent(rng, p, h)
     centre = rng.uniform(-0.6, 0.6) * r * frame[1]
     return Cylinder((float(centre[0]), float(centre[1]), z), r, height)
@@ -423,10 +430,9 @@ def _translate(shape, offset: np.ndarray):
     """The same shape moved by ``offset`` (3,), m."""
     off = np.asarray(offset, float)
     if isinstance(shape, Box):
-        return Box(tuple(float(c) for c in np.asarray(shape.center) + off), shape.size)
+        return Box(_floats(np.asarray(shape.center) + off), shape.size)
     if isinstance(shape, Cylinder):
-        return Cylinder(tuple(float(c) for c in np.asarray(shape.base) + off), shape.radius,
-                        shape.height)
+        return Cylinder(_floats(np.asarray(shape.base) + off), shape.radius, shape.height)
     if isinstance(shape, Union):
         return Union(tuple(_translate(s, off) for s in shape.parts))
     if isinstance(shape, Difference):
@@ -444,9 +450,19 @@ def _projection(shape, u: np.ndarray) -> tuple[float, float]:
 
 
 def _gap(a, b) -> float:
-    """Distance (m) between the bounding boxes of two shapes (0 when they overlap)."""
-    (alo, ahi), (blo, bhi) = a.bounds(), b.bounds()
-    return float(np.linalg.norm(np.maximum(0.0, np.maximum(alo - bhi, blo - ahi))))
+    """Lower bound (m) on the distance between two shapes: the smallest distance between the
+    bounding boxes of their parts (a union's parts, a difference's outer shape), 0 when
+    they overlap. Parts rather than whole bounding boxes let L- and T-walls nest."""
+    return min(float(np.linalg.norm(np.maximum(0.0, np.maximum(alo - bhi, blo - ahi))))
+               for alo, ahi in _part_bounds(a) for blo, bhi in _part_bounds(b))
+
+
+def _part_bounds(shape) -> list[tuple[np.ndarray, np.ndarray]]:
+    if isinstance(shape, Union):
+        return [b for part in shape.parts for b in _part_bounds(part)]
+    if isinstance(shape, Difference):
+        return _part_bounds(shape.outer)
+    return [shape.bounds()]
 
 
 def _segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -454,6 +470,10 @@ def _segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> float
     ab = b - a
     s = np.clip((points - a) @ ab / (ab @ ab), 0.0, 1.0)
     return float(np.min(np.linalg.norm(points - (a + s[:, None] * ab), axis=1)))
+
+
+def _floats(v: np.ndarray) -> tuple[float, ...]:
+    return tuple(float(c) for c in v)
 
 
 def _is_pair(value) -> bool:
