@@ -117,6 +117,7 @@ class RealTimeNMPC:
                                 "error_on_fail": False, "print_problem": False})
         self._qp_matrices = self._matrix_function()
         self.qp_counts = {"riccati": 0, "hpipm": 0, "failed": 0}
+        self._empty_scans = {}  # capacity -> packed parameters of a scan that sees nothing
 
     def _matrix_function(self) -> ca.Function:
         """Blocks of the linearisation -> HPIPM's sparse H and A (a fixed permutation)."""
@@ -143,7 +144,7 @@ class RealTimeNMPC:
         target = _as_vector("target", target, 3)
         visible = check_visible(visible)
         lin, lin_cfg = self._linearisation_for(visible)
-        params = np.concatenate([target, pack_scan(visible, x0[:3], lin_cfg)])
+        params = np.concatenate([target, self._pack_scan(visible, x0, lin_cfg)])
         guess = previous.reanchored(x0) if previous is not None else self.hover_guess(x0)
         X = np.array(guess.x, dtype=float)  # (N+1, 12)
         X[0] = x0
@@ -193,6 +194,17 @@ class RealTimeNMPC:
         x = np.zeros(N_STATES)
         x[:3], x[5] = a[:3], a[3]
         return x
+
+    def _pack_scan(self, visible, x0, cfg):
+        """:func:`~paper_repro.nmpc.pack_scan`, except that the packing of an empty scan, the
+        same wherever the UAV is, is made once per capacity (empty scans are common: nothing
+        in LiDAR range)."""
+        if any(len(v) for v in visible):
+            return pack_scan(visible, x0[:3], cfg)
+        cap = cfg.nmpc.points_per_region
+        if cap not in self._empty_scans:
+            self._empty_scans[cap] = pack_scan((), x0[:3], cfg)
+        return self._empty_scans[cap]
 
     def _linearisation_for(self, visible):
         """The compiled linearisation of the smallest capacity that holds the scan."""

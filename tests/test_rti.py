@@ -7,7 +7,7 @@ import pytest
 
 from paper_repro import Config, DistanceParams, Lidar, NMPCParams, SimulationParams, make_scene
 from paper_repro.model import equilibrium, rk4_discretisation
-from paper_repro.nmpc import TrackingNMPC, make_controller
+from paper_repro.nmpc import TrackingNMPC, make_controller, pack_scan
 from paper_repro.rti import RealTimeNMPC
 from paper_repro.simulation import simulate
 
@@ -139,7 +139,11 @@ def test_a_smaller_lidar_capacity_gives_the_same_step(scene, metric):
     np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
     # Nothing in range: the capacity-1 linearisation, still the same step.
     empty = [np.empty((0, 3))]
-    assert ladder._linearisation_for(empty)[1].nmpc.points_per_region == 1
+    lin_cfg = ladder._linearisation_for(empty)[1]
+    assert lin_cfg.nmpc.points_per_region == 1
+    # An empty scan is packed once: the same parameters wherever the UAV is.
+    np.testing.assert_array_equal(ladder._pack_scan(empty, x0 + 7.0, lin_cfg),
+                                  pack_scan(empty, x0[:3], lin_cfg))
     a = ladder.solve(x0, scene.targets[0], empty)
     b = full.solve(x0, scene.targets[0], empty)
     np.testing.assert_allclose(a.u, b.u, rtol=0, atol=1e-10)
