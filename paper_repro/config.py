@@ -252,6 +252,11 @@ class SimulationParams:
         than ``stall_distance`` from its target. Under the printed weights the speed of a
         free approach is about (distance to target)/150 s, i.e. 1 cm/s at 1.5 m, so a
         threshold of 1 m would flag every normal final approach; 2 m leaves a third above it.
+    fault_steps : *chosen* 100 (1 s). A step whose measured state is not finite, or whose
+        solve cannot start, is a *fault*: it is recorded and the previous plan is applied
+        (shifted, as after a failed solve). After more than ``fault_steps`` faults in a row
+        the run ends with the outcome ``"fault"``; the previous plan ends at rest at its
+        artificial equilibrium, so holding it for a second is safe.
     """
 
     scenario: str = "paper"
@@ -263,6 +268,7 @@ class SimulationParams:
     stall_speed: float = 0.01
     stall_time: float = 5.0
     stall_distance: float = 2.0
+    fault_steps: int = 100
 
     def __post_init__(self):
         _require_choice("kind", self.kind, ("mission", "passage"))
@@ -275,6 +281,7 @@ class SimulationParams:
                              f"{self.scenario!r}")
         _require_int("max_steps", self.max_steps, 1)
         _require_int("seed", self.seed, 0)
+        _require_int("fault_steps", self.fault_steps, 1)
 
 
 @dataclass(frozen=True)

@@ -143,7 +143,10 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
       in a deadlock (see :class:`~paper_repro.config.SimulationParams`).
     * chattering over the whole run (:func:`chattering_metrics`), with the total variation
       also per second of flight (``tv_u_rate_N_per_s``), so runs of different lengths compare.
-    * solve times (median, p95, p99, max) and ``failed_solves``.
+    * solve times (median, p95, p99, max), ``failed_solves``, ``dropped_points`` (non-finite
+      scan points) and ``fault_steps`` (steps without a usable state or solve).
+    * the set-up's hazards (``meta["hazards"]``, :func:`paper_repro.safety.setup_hazards`):
+      ``start_unsafe``, ``target_unsafe``, ``target_unreachable``.
     """
     cfg = result.config
     ts = cfg.nmpc.ts
@@ -155,6 +158,7 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
     completed = result.outcome == "completed"
     min_clearance = float(np.min(result.clearance))
     wall = float(result.meta.get("wall_time_s", float("nan")))
+    hazards = result.meta.get("hazards") or {}
     return {
         "run": f"{result.scene.name}/{cfg.distance.metric}",
         "metric": cfg.distance.metric,
@@ -182,6 +186,10 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
         "iterations_max": int(np.max(result.iterations)),
         "failed_solves": int(np.sum(~np.asarray(result.success, bool))),
         "dropped_points": int(np.sum(result.dropped_points)),
+        "fault_steps": int(np.isin(result.status, ("state_fault", "solve_error")).sum()),
+        "start_unsafe": bool(hazards.get("start_unsafe", False)),
+        "target_unsafe": bool(any(hazards.get("targets_unsafe") or [])),
+        "target_unreachable": bool(any(hazards.get("targets_unreachable") or [])),
         "tv_u_N": chat["total_variation"],
         "tv_u_rate_N_per_s": chat["total_variation"] / simulated,
         "max_abs_du_N": chat["max_abs_du"],

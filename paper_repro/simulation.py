@@ -13,6 +13,8 @@ import platform
 import subprocess
 import sys
 import time
+import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -23,15 +25,38 @@ from .config import Config
 from .model import N_INPUTS, N_STATES, equilibrium
 from .nmpc import NMPCSolution, TrackingNMPC, make_controller
 from .plant import Plant
+from .safety import SetupHazardWarning, check_setup, setup_hazards
 from .scene import Lidar, Scene, make_scene
 
 _ARRAYS = ("t", "x", "u", "x_a", "u_a", "solve_time", "iterations", "success", "clearance",
            "target_index", "visible_points", "dropped_points")
 
-OUTCOMES = ("completed", "stalled", "step_limit")
+OUTCOMES = ("completed", "stalled", "step_limit", "fault")
 """How a run ends: ``completed`` (every target reached, or for a passage the finish line
 crossed), ``stalled`` (the NMPC deadlocked, see
-:class:`~paper_repro.config.SimulationParams`), ``step_limit`` (``max_steps`` flown first)."""
+:class:`~paper_repro.config.SimulationParams`), ``step_limit`` (``max_steps`` flown first),
+``fault`` (more than ``fault_steps`` steps in a row without a usable state or solve; the
+reason is in ``meta["fault"]``)."""
+
+FAULT_STATUSES = ("state_fault", "solve_error")
+"""Step statuses of a fault: the measured state was not finite, or the solve raised before it
+could start (its message is in ``meta["errors"]``)."""
+
+
+@dataclass(frozen=True)
+class Faults:
+    """Faults injected into a closed loop, for robustness tests and studies.
+
+    Attributes
+    ----------
+    scan : ``(k, visible) -> visible``, applied to the LiDAR scan of step k (e.g. NaN points,
+        an empty scan, a region's points removed).
+    state : ``(k, x) -> x_measured``, the state the controller is given at step k (e.g. a NaN
+        estimate); the plant keeps its true state.
+    """
+
+    scan: Callable | None = None
+    state: Callable | None = None
 
 
 @dataclass
@@ -149,7 +174,7 @@ class SimulationResult:
 
 def simulate(config: Config | None = None, controller: TrackingNMPC | None = None,
              max_steps: int | None = None, progress: bool | None = None,
-             scene: Scene | None = None) -> SimulationResult:
+             scene: Scene | None = None, faults: Faults | None = None) -> SimulationResult:
     """Fly the configured scenario in closed loop.
 
     Parameters
@@ -162,12 +187,21 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
     progress : show a progress bar (default: only when writing to a terminal).
     scene : fly this scene instead of ``config.simulation.scenario`` (e.g. your own regions, or
         a variant made with ``dataclasses.replace``); it is saved with the result.
+    faults : sensor faults to inject (:class:`Faults`); none by default.
+
+    Before anything is built, :func:`~paper_repro.safety.check_setup` rejects an inconsistent
+    mission (``ValueError``) and :func:`~paper_repro.safety.setup_hazards` warns of an unsafe
+    one (a start or target inside the unsafe set or within the rotor radius of a cloud, a
+    target the artificial equilibrium cannot reach); the hazards are kept in
+    ``meta["hazards"]``.
 
     The run ends when it is complete (every target reached; for ``kind="passage"`` the finish
-    line crossed), when it stalls, or after ``max_steps``: see :data:`OUTCOMES`.
-    A failed solve never stops the run: it is recorded in ``success``/``status`` and the
-    previous plan, shifted by one step, is applied instead (its first input). Non-finite points
-    in a scan are dropped and counted in ``dropped_points``.
+    line crossed), when it stalls, after ``max_steps``, or after persistent faults: see
+    :data:`OUTCOMES`. A failed solve never stops the run: it is recorded in
+    ``success``/``status`` and the previous plan, shifted by one step, is applied instead (its
+    first input). Non-finite points in a scan are dropped and counted in ``dropped_points``; a
+    non-finite measured state or a solve that raises is a fault (:data:`FAULT_STATUSES`),
+    handled the same way.
     """
     cfg = config or Config()
     if max_steps is not None:
@@ -176,10 +210,11 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
     sim, ts = cfg.simulation, cfg.nmpc.ts
     scene = scene if scene is not None else make_scene(sim.scenario, sim.seed)
     passage = sim.kind == "passage"
-    if passage and scene.finish is None:
-        raise ValueError(f"kind='passage' needs a scene with a finish line; scene "
-                         f"{scene.name!r} has none (use kind='mission')")
-    lidar = Lidar(scene.clouds, sim.lidar_range)
+    check_setup(cfg, scene)  # an inconsistent mission fails here, before anything is built
+    hazards = setup_hazards(cfg, scene)
+    for line in hazards["warnings"]:
+        warnings.warn(f"{scene.name}: {line}", SetupHazardWarning, stacklevel=2)
+    lidar = Lidar(scene.clouds, sim.lidar_range, noise=cfg.sensor)
     plant = Plant(cfg.quadrotor, ts)  # RK45 in C, as solve_ivp (ODE45 in the paper)
     truth = cKDTree(scene.all_points) if len(scene.all_points) else None
     ctl = controller or make_controller(cfg)
@@ -195,17 +230,26 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
     reached = np.full(len(targets), -1)
     target_index, slow, outcome = 0, 0, "step_limit"
     plan: NMPCSolution | None = None
+    in_a_row, errors, last_good = 0, [], x.copy()
     meta = run_metadata()  # before flying: the commit and versions that produce this run
+    meta["hazards"] = hazards
     bar = _progress_bar(sim.max_steps, progress)
     wall = time.perf_counter()
     for k in range(sim.max_steps):
         target = targets[target_index]
-        visible, dropped = _finite_points(lidar.scan(x[:3]))
-        sol = ctl.solve(x, target, visible, previous=plan)
+        measured = x if faults is None or faults.state is None else faults.state(k, x.copy())
+        visible = lidar.scan(x[:3])
+        if faults is not None and faults.scan is not None:
+            visible = faults.scan(k, visible)
+        visible, dropped = _finite_points(visible)
+        sol = _solve(ctl, measured, target, visible, plan, errors)
         if sol.success:
-            plan = sol
+            plan, last_good = sol, measured
         else:
-            plan = plan.shifted() if plan is not None else ctl.hover_guess(x)
+            plan = plan.shifted() if plan is not None else ctl.hover_guess(last_good)
+            if sol.status == "solve_error" or sol.status == "state_fault":
+                sol = dataclasses.replace(sol, x_a=plan.x_a, u_a=plan.u_a)
+        in_a_row = in_a_row + 1 if sol.status in FAULT_STATUSES else 0
         u = plan.u[0]
         log.record(k, k * ts, x, u, sol, np.inf if truth is None else truth.query(x[:3])[0],
                    target_index, sum(len(v) for v in visible), dropped)
@@ -233,11 +277,17 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
         if slow > stall_steps:
             outcome = "stalled"
             break
+        if in_a_row > sim.fault_steps:
+            outcome = "fault"
+            meta["fault"] = (f"{in_a_row} steps in a row without a usable state or solve "
+                             f"(last: {sol.status}{': ' + errors[-1] if errors else ''})")
+            break
     if bar is not None:
         bar.close()
 
     arrays = log.arrays(x)
     meta["wall_time_s"] = time.perf_counter() - wall
+    meta["errors"] = errors
     meta["scene"] = scene.name
     if counts_before is not None:  # QPs of this run by solver path (rti solver only)
         meta["qp_counts"] = {k: v - counts_before.get(k, 0) for k, v in ctl.qp_counts.items()}
@@ -309,6 +359,23 @@ class _Log:
         out["x"] = self.x[:n + 1].copy()
         out["status"] = self.status[:n].astype(str)
         return out
+
+
+def _solve(ctl, measured, target, visible, plan, errors: list) -> NMPCSolution:
+    """The controller's solution, or a failed one with the fault's status: a non-finite
+    measured state is never handed to the solver, and a solve that raises is recorded (its
+    first messages in ``errors``) instead of ending the flight."""
+    status = "state_fault"
+    if np.all(np.isfinite(measured)):
+        try:
+            return ctl.solve(measured, target, visible, previous=plan)
+        except Exception as exc:  # noqa: BLE001 - recorded; persistent faults end the run
+            status = "solve_error"
+            if len(errors) < 20:
+                errors.append(f"{type(exc).__name__}: {exc}")
+    nan = np.full(N_STATES, np.nan)
+    return NMPCSolution(np.zeros((0, N_INPUTS)), np.zeros((0, N_STATES)), nan,
+                        np.full(N_INPUTS, np.nan), False, status, 0, 0.0, np.nan)
 
 
 def _finite_points(visible) -> tuple[list[np.ndarray], int]:

@@ -204,7 +204,8 @@ def test_cli_run_saves_a_loadable_result(tmp_path, capsys, solver):
     assert main(["run", "--scenario", "encounter", "--metric", "smooth", "--solver", solver,
                  "--max-steps", "3", "--out", str(out), "--no-progress"]) == 0
     line = capsys.readouterr().out.strip()
-    assert "encounter/smooth: 3 steps" in line and "failed solves 0" in line
+    assert "encounter/smooth (mission): step_limit after 3 steps" in line
+    assert "failed solves 0" in line
     result = SimulationResult.load(out)
     assert result.steps == 3 and result.config.nmpc.solver == solver
     frame = result.to_frame()
