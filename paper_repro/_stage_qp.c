@@ -192,15 +192,12 @@ static int factorise(int n, const int *nx, const int *nu, const double *h, const
         /* Column by column, adding the u terms in the same order as a dot product would,
          * but along r, which the compiler vectorises. */
         double *p = P[j];
-        for (int cc = 0; cc < x; ++cc) {
-            double *pc = p + (size_t)cc * x;
-            memcpy(pc, m + (size_t)cc * s, sizeof(double) * x);
-            for (int i = 0; i < u; ++i) {
-                double v = m[x + i + cc * s];
-                const double *mc = m + (size_t)(x + i) * s;
-                for (int r = 0; r < x; ++r) pc[r] += mc[r] * v;
+        for (int cc = 0; cc < x; ++cc)
+            for (int r = 0; r < x; ++r) {
+                double acc = m[r + cc * s];
+                for (int i = 0; i < u; ++i) acc += m[r + (x + i) * s] * m[x + i + cc * s];
+                p[r + cc * x] = acc;
             }
-        }
         for (int cc = 0; cc < x; ++cc)
             for (int r = cc + 1; r < x; ++r) {
                 double v = 0.5 * (p[r + cc * x] + p[cc + r * x]);
