@@ -122,8 +122,8 @@ def test_without_compiled_code_the_same_step_comes_out(scene):
 
 @pytest.mark.parametrize("metric", ["smooth", "euclidean"])
 def test_a_smaller_lidar_capacity_gives_the_same_step(scene, metric):
-    """A scan of a few points goes to the capacity-16 linearisation: padding contributes exactly
-    0, so the step equals the one of the full capacity (48 here)."""
+    """A scan of a few points goes to the smallest capacity that holds it: padding contributes
+    exactly 0, so the step equals the one of the full capacity (48 here)."""
     x0, _ = equilibrium([-18.3, 0.2, 2.0])
     x0[6] = 0.3
     visible = Lidar(scene.clouds).scan(x0[:3])
@@ -131,8 +131,9 @@ def test_a_smaller_lidar_capacity_gives_the_same_step(scene, metric):
     assert 0 < max(counts) <= 16
     ladder = RealTimeNMPC(_config(metric))
     full = RealTimeNMPC(_config(metric), capacities=())
-    assert [cap for cap, _, _ in ladder._lins] == [1, 16, 48]
-    assert ladder._linearisation_for(visible)[1].nmpc.points_per_region == 16
+    assert [cap for cap, _, _ in ladder._lins] == [1, 8, 16, 24, 32, 48]
+    fitting = min(c for c in (1, 8, 16, 24, 32, 48) if c >= max(counts))
+    assert ladder._linearisation_for(visible)[1].nmpc.points_per_region == fitting
     a = ladder.solve(x0, scene.targets[0], visible)
     b = full.solve(x0, scene.targets[0], visible)
     np.testing.assert_allclose(a.u, b.u, rtol=0, atol=1e-10)
