@@ -12,6 +12,7 @@ import pytest
 
 from paper_repro import Config, NMPCParams
 from paper_repro import reproduce as R
+from paper_repro import study as S
 from paper_repro.paths import notebooks_dir
 
 NOTEBOOK_FILES = sorted(notebooks_dir().glob("*.ipynb"))
@@ -30,9 +31,26 @@ def tiny_results(tmp_path_factory):
             for spec in R.run_specs(max_steps=TINY_STEPS, config=TINY)}
 
 
+STUDY_NOTEBOOKS = {nb: name for name, nb in S.STUDY_NOTEBOOKS.items()}
+STUDY_OUTPUTS = {
+    "09_monte_carlo": ("mc_summary.csv", "mc_outcome_rates.png", "mc_paired_chattering.png",
+                       "mc_clearance_ecdf.png", "mc_solve_times.png"),
+    "10_eta_sweep": ("eta_sweep_settings.csv", "eta_sweep_eta.png", "eta_sweep_sigma.png"),
+}
+
+
+@pytest.fixture(scope="session")
+def quick_studies(tmp_path_factory):
+    """Both studies with --quick parameters, their runs in one shared cache."""
+    base = tmp_path_factory.getbasetemp() / "studies"
+    return {name: S.run_study(S.make_study(name, quick=True), out=base / name, workers=0,
+                              runs_dir=base / "runs", progress=False, log=lambda line: None)
+            for name in S.STUDY_NOTEBOOKS}
+
+
 def test_every_notebook_is_registered_and_every_registered_one_exists():
     assert NOTEBOOK_FILES, "no notebook found"
-    assert {p.stem for p in NOTEBOOK_FILES} == set(SPECS)
+    assert {p.stem for p in NOTEBOOK_FILES} == set(SPECS) | set(STUDY_NOTEBOOKS)
 
 
 @pytest.mark.parametrize("path", NOTEBOOK_FILES, ids=lambda p: p.stem)
@@ -55,6 +73,9 @@ def test_exactly_one_parameters_cell_and_reproduce_passes_only_declared_names(pa
     assert len(tagged) == 1 and tagged[0].cell_type == "code"
     declared = R.declared_parameters(path)
     assert "figures_dir" in declared
+    if path.stem in STUDY_NOTEBOOKS:
+        assert "study_dir" in declared
+        return
     spec = SPECS[path.stem]
     dirs = {m: f"/results/{m}" for m in R.METRICS}
     for quick in (False, True):
@@ -81,6 +102,29 @@ def test_notebook_executes_with_quick_parameters(name, tiny_results, tmp_path):
         assert list(table.index) == ["paper/smooth", "paper/euclidean"]
         assert (table["steps"] == TINY_STEPS).all()
         assert (table["failed_solves"] >= 0).all() and (table["solve_median_ms"] > 0).all()
+
+
+@pytest.mark.parametrize("name", sorted(STUDY_NOTEBOOKS))
+def test_study_notebook_draws_from_the_saved_table(name, quick_studies, tmp_path):
+    study = quick_studies[STUDY_NOTEBOOKS[name]]
+    assert (study.table["status"] == "ok").all(), study.failed["error"].tolist()
+    figures = tmp_path / "figures"
+    figures.mkdir()
+    out = R.execute_notebook(R.notebook_path(name), tmp_path / f"{name}.ipynb",
+                             {"study_dir": str(study.directory), "figures_dir": str(figures)})
+    code = [c for c in nbformat.read(out, as_version=4).cells if c.cell_type == "code"]
+    assert not any(o.get("output_type") == "error" for c in code for o in c.outputs)
+    for f in STUDY_OUTPUTS[name]:
+        assert (figures / f).is_file() and (figures / f).stat().st_size > 0, f
+    if name == "09_monte_carlo":
+        rates = pd.read_csv(figures / "mc_summary.csv").query("kind == 'rate'")
+        assert set(rates["metric"]) == {"smooth", "euclidean"} and (rates["n"] == 3).all()
+        # every run in exactly one class
+        per_metric = rates[rates["event"] != "collision"].groupby("metric")["k"].sum()
+        assert (per_metric == 3).all()
+    else:
+        settings = pd.read_csv(figures / "eta_sweep_settings.csv")
+        assert len(settings) == 3 and (settings["runs"] == 2).all()
 
 
 def test_unknown_parameter_raises_before_execution(tmp_path):
