@@ -8,7 +8,9 @@ step is everything the loop does: LiDAR scan, controller, plant integration, log
 compile caches are warmed and the controllers built before any timing; each flight starts
 from a controller that has flown a few steps and was then reset.
 
-The table gives, per run: steps, wall time, steps/s, ms per step, and its parts: the plant
+The table gives, per run: steps, wall time, steps/s, ms per step, CPU ms per step (the
+process's CPU time: what the step costs when other jobs share the cores), and the parts of a
+step: the plant
 (the flight's logged states and inputs integrated again by the integrator ``simulate`` uses,
 timed alone; the replay must reproduce the logged states), the controller (mean of
 ``result.solve_time``, the whole ``solve`` call) and the rest (LiDAR scan, truth distance,
@@ -62,13 +64,13 @@ def main() -> None:
     ctl = _warm_controller(cfg)  # also fills the compile caches the workers will load from
     Plant(cfg.quadrotor, cfg.nmpc.ts)
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     result = simulate(cfg, controller=ctl, max_steps=args.steps, progress=False)
-    outer = time.perf_counter() - t0
+    outer, cpu = time.perf_counter() - t0, time.process_time() - c0
     wall = result.meta.get("wall_time_s", outer)
     plant_name, plant_ms, replay_error = _plant_cost(result, cfg)
     one = _row("1 worker", result.steps, wall, float(np.mean(result.solve_time)) * 1e3,
-               plant_ms)
+               plant_ms, cpu)
 
     ctx = mp.get_context("spawn")
     barrier = ctx.Barrier(args.workers)
@@ -83,21 +85,21 @@ def main() -> None:
     rows = [one]
     for i, r in enumerate(reports):
         rows.append(_row(f"worker {i + 1}/{args.workers}", r["steps"], r["wall"],
-                         r["controller_ms"], float("nan")))
+                         r["controller_ms"], float("nan"), r["cpu"]))
     span = max(r["end"] for r in reports) - min(r["start"] for r in reports)
     total = sum(r["steps"] for r in reports)
     rows.append(_row(f"{args.workers} workers, together", total, span, float("nan"),
-                     float("nan")))
+                     float("nan"), sum(r["cpu"] for r in reports)))
 
     print(f"# {args.scenario} mission, {cfg.distance.metric} metric; plant: {plant_name} "
           f"(replay reproduces the logged states to {replay_error:.1e} m)")
-    header = ("run", "steps", "wall s", "steps/s", "ms/step", "plant ms", "ctrl ms",
-              "rest ms")
-    print("{:<22}{:>8}{:>9}{:>9}{:>9}{:>10}{:>9}{:>9}".format(*header))
+    header = ("run", "steps", "wall s", "steps/s", "ms/step", "cpu ms", "plant ms",
+              "ctrl ms", "rest ms")
+    print("{:<22}{:>8}{:>9}{:>9}{:>9}{:>9}{:>10}{:>9}{:>9}".format(*header))
     for r in rows:
-        print("{:<22}{:>8d}{:>9.2f}{:>9.0f}{:>9.3f}{:>10.3f}{:>9.3f}{:>9.3f}".format(
-            r["run"], r["steps"], r["wall"], r["steps_per_s"], r["ms"], r["plant_ms"],
-            r["controller_ms"], r["rest_ms"]))
+        print("{:<22}{:>8d}{:>9.2f}{:>9.0f}{:>9.3f}{:>9.3f}{:>10.3f}{:>9.3f}{:>9.3f}".format(
+            r["run"], r["steps"], r["wall"], r["steps_per_s"], r["ms"], r["cpu_ms"],
+            r["plant_ms"], r["controller_ms"], r["rest_ms"]))
     together = total / span
     print(json.dumps({
         "steps_per_core_s": round(one["steps_per_s"], 1),
@@ -129,10 +131,11 @@ def _worker(scenario: str, steps: int, barrier, queue) -> None:
     ctl = _warm_controller(cfg)
     barrier.wait()
     start = time.perf_counter()  # CLOCK_MONOTONIC: comparable between processes
+    cpu = time.process_time()
     result = simulate(cfg, controller=ctl, max_steps=steps, progress=False)
-    end = time.perf_counter()
+    end, cpu = time.perf_counter(), time.process_time() - cpu
     queue.put({"steps": result.steps, "wall": result.meta.get("wall_time_s", end - start),
-               "start": start, "end": end,
+               "start": start, "end": end, "cpu": cpu,
                "controller_ms": float(np.mean(result.solve_time)) * 1e3})
 
 
@@ -158,10 +161,10 @@ def _plant_cost(result, cfg: Config):
     return name, elapsed / len(u) * 1e3, error
 
 
-def _row(run, steps, wall, controller_ms, plant_ms):
+def _row(run, steps, wall, controller_ms, plant_ms, cpu):
     ms = wall / steps * 1e3
     return {"run": run, "steps": steps, "wall": wall, "steps_per_s": steps / wall, "ms": ms,
-            "plant_ms": plant_ms, "controller_ms": controller_ms,
+            "cpu_ms": cpu / steps * 1e3, "plant_ms": plant_ms, "controller_ms": controller_ms,
             "rest_ms": ms - controller_ms - plant_ms}
 
 
