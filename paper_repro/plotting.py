@@ -4,9 +4,10 @@
 Fig. 1                   :func:`plot_flight_3d` — trajectory, clouds, LiDAR spheres, targets
 Figs. 2, 3               :func:`plot_projection` with ``plane="xz"`` / ``"xy"``
 Figs. 4, 8               :func:`plot_thrusts` — f1..f4 and the artificial input u_a
-Figs. 5, 7               :func:`plot_tracking_errors` — |e_x|, |e_y|, |e_z|, e = y − y_t
+Figs. 5, 7               :func:`plot_tracking_errors` — e_x, e_y, e_z, e = y − y_t (signed)
 Fig. 6                   :func:`plot_states` — x, y, z with the artificial state y_a
 summary                  :func:`plot_solve_times`, :func:`plot_input_spectrum`
+the clock (issue 12)     :func:`plot_clock_levers`, :func:`plot_flight_clocks`
 tutorial (eq. 8–13)      :func:`plot_distance_slice`, :func:`plot_eta_sigma`,
                          :func:`plot_gradient_field`, :func:`plot_half_squared_limit`
 video                    :func:`animate_flight` (GIF)
@@ -131,21 +132,29 @@ def plot_thrusts(result, axes=None, max_points: int = MAX_POINTS, t_range=None):
     return fig
 
 
-def plot_tracking_errors(result, ax=None, max_points: int = MAX_POINTS, t_range=None):
-    """Figs. 5 and 7: absolute tracking errors |e_x|, |e_y|, |e_z| (m), e = y − y_t.
+def plot_tracking_errors(result, ax=None, max_points: int = MAX_POINTS, t_range=None,
+                         signed: bool = True):
+    """Figs. 5 and 7: the output tracking errors e_x, e_y, e_z (m), e = y − y_t.
 
-    y_t is the set-point active at each step; dotted lines mark the target switches.
-    ``t_range`` : (t0, t1) s to draw only part of the run.
+    As the paper defines them, signed: e_x = x_I − x_t (its axes go negative), so an
+    approach from the target's negative side shows as a negative error rising to 0.
+    ``signed=False`` draws |e_x|, |e_y|, |e_z| instead, easier to read on a log scale or when
+    only the size matters. y_t is the set-point active at each step; dotted lines mark the
+    target switches. ``t_range`` : (t0, t1) s to draw only part of the run.
     """
     fig, ax = _axes(ax, figsize=(7, 3.5))
     k = _steps_in(result, t_range)
-    t, e = result.t[k], np.abs(metrics.tracking_error(result))[k]
+    e = metrics.tracking_error(result)[k]
+    t, e = result.t[k], (e if signed else np.abs(e))
     for i, name in enumerate("xyz"):
         idx = envelope_indices(e[:, i], max_points)
-        ax.plot(t[idx], e[idx, i], lw=1.0, label=f"$|e_{name}|$")
+        label = f"$e_{name}$" if signed else f"$|e_{name}|$"
+        ax.plot(t[idx], e[idx, i], lw=1.0, label=label)
+    if signed:
+        ax.axhline(0.0, color="grey", lw=0.6)
     _mark_target_switches(ax, result, t)
     ax.set_xlabel("t [s]")
-    ax.set_ylabel("absolute error [m]")
+    ax.set_ylabel("error [m]" if signed else "absolute error [m]")
     ax.set_title(f"output tracking error ({result.config.distance.metric} distance)")
     ax.legend(loc="upper right", fontsize="small")
     ax.grid(alpha=0.3)
@@ -507,6 +516,30 @@ def plot_paired(table, a: str = "smooth", b: str = "euclidean", pair_on: str = "
     return fig
 
 
+def plot_paired_by(paired, by: str):
+    """The paired effects of :func:`paper_repro.analysis.paired` (median and 95 % interval)
+    for each value of ``by`` side by side, one panel per measure; ratios on a log axis with the
+    line of no difference."""
+    measures = list(dict.fromkeys(paired["measure"]))
+    groups = list(dict.fromkeys(paired[by]))
+    fig, axes = plt.subplots(1, len(measures), figsize=(3.0 * len(measures), 3.0),
+                             constrained_layout=True)
+    for ax, m in zip(np.atleast_1d(axes), measures, strict=True):
+        rows = paired[paired["measure"] == m].set_index(by).loc[groups]
+        x = np.arange(len(groups))
+        y = rows["median_effect"].to_numpy(float)
+        err = np.vstack([y - rows["low"].to_numpy(float), rows["high"].to_numpy(float) - y])
+        ax.errorbar(x, y, yerr=np.abs(err), fmt="o", color="k", capsize=4)
+        ratio = rows["effect"].iloc[0].startswith("ratio")
+        ax.axhline(1.0 if ratio else 0.0, color="0.6", ls="--", lw=1)
+        if ratio and np.all(np.r_[y, rows["low"]] > 0):
+            ax.set_yscale("log")
+        ax.set_xticks(x, groups)
+        ax.set_xlim(-0.6, len(groups) - 0.4)
+        ax.set_title(f"{rows['label'].iloc[0]}\n({rows['effect'].iloc[0]})", fontsize=8)
+    return fig
+
+
 def plot_clearance_ecdf(table, ax=None, collision: float = metrics.COLLISION_CLEARANCE):
     """ECDF of each run's minimum clearance, per metric, with the collision threshold."""
     from .analysis import ecdf
@@ -582,6 +615,82 @@ def plot_sweep(settings, x: str, fixed: dict, columns=(
                                   for k, v in fixed.items()) + ")")
         ax.set_title(label, fontsize=9)
     axes[0, 0].legend(frameon=False, fontsize=8)
+    return fig
+
+
+# --- the mission's clock (paper_repro.timeline, issue 12) -----------------------------------
+
+def plot_clock_levers(sweeps, paper_time: float = 500.0, tolerance: float = 0.10,
+                      printed: dict | None = None):
+    """Mission time of the linear loop against each lever, beside the paper's clock.
+
+    Parameters
+    ----------
+    sweeps : DataFrame of :func:`paper_repro.timeline.lever_sweep` rows (several levers).
+    paper_time : s, the paper's mission (a band of ± ``tolerance`` around it is shaded).
+    printed : lever → printed value, marked with a dotted line.
+    """
+    from .timeline import LEVERS
+
+    levers = list(dict.fromkeys(sweeps["lever"]))
+    fig, axes = plt.subplots(1, len(levers), figsize=(2.6 * len(levers), 3.0), sharey=True,
+                             squeeze=False)
+    for ax, lever in zip(axes[0], levers):
+        rows = sweeps[sweeps["lever"] == lever].sort_values("value")
+        ax.plot(rows["value"], rows["mission_time_s"], "o-", ms=3, lw=1.0, color="black")
+        ax.axhspan(paper_time * (1 - tolerance), paper_time * (1 + tolerance),
+                   color="tab:green", alpha=0.2, lw=0)
+        ax.axhline(paper_time, color="tab:green", lw=0.8)
+        if printed and lever in printed:
+            ax.axvline(printed[lever], color="0.4", ls=":", lw=1.0)
+        if lever in ("T", "R", "rate weights"):
+            ax.set_xscale("log")
+        ax.set_xlabel(LEVERS[lever][0] if lever in LEVERS else lever, fontsize=8)
+        ax.set_yscale("log")
+        ax.grid(alpha=0.3, which="both")
+    axes[0, 0].set_ylabel("mission time, linear loop [s]")
+    fig.suptitle(f"the clock under one changed parameter (band: {paper_time:g} s "
+                 f"± {tolerance:.0%})", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def plot_flight_clocks(results, labels, paper_time: float = 500.0,
+                       paper_avoidance=(50.0, 120.0), merge_gap_s: float = 5.0):
+    """Distance to the active target against time for each flight, with its avoidance
+    windows (a cloud within the LiDAR's range) as bars, beside the paper's clock.
+
+    Parameters
+    ----------
+    results : SimulationResults.   labels : one legend entry each.
+    paper_time : s, end of the paper's time axes (dashed line).
+    paper_avoidance : (t0, t1) s, the paper's avoidance phases (shaded).
+    """
+    from .timeline import avoidance_windows
+
+    fig, (ax, bars) = plt.subplots(2, 1, figsize=(7.5, 5.0), sharex=True,
+                                   gridspec_kw={"height_ratios": (3, 1.3)})
+    for i, (r, label) in enumerate(zip(results, labels, strict=True)):
+        dist = np.linalg.norm(metrics.tracking_error(r), axis=1)
+        idx = stride_indices(len(dist), MAX_POINTS)
+        line, = ax.plot(r.t[idx], dist[idx], _LINESTYLES[i], lw=1.0, label=label)
+        for a, b in avoidance_windows(r, merge_gap_s):
+            bars.plot([a, b], [i, i], color=line.get_color(), lw=5, solid_capstyle="butt")
+    for a in (ax, bars):
+        a.axvspan(*paper_avoidance, color="tab:orange", alpha=0.15, lw=0)
+        a.axvline(paper_time, color="tab:green", ls="--", lw=1.0)
+        a.grid(alpha=0.3)
+    ax.set_ylabel("‖y − y_t‖ [m]")
+    ax.set_title(f"the paper mission's clock (dashed: the paper's {paper_time:g} s; shaded: "
+                 f"its avoidance, {paper_avoidance[0]:g}–{paper_avoidance[1]:g} s)",
+                 fontsize=9)
+    ax.legend(fontsize="small", loc="upper right")
+    bars.set_yticks(range(len(labels)), labels, fontsize=7)
+    bars.set_ylim(-0.7, len(labels) - 0.3)
+    bars.invert_yaxis()
+    bars.set_xlabel("t [s]")
+    bars.set_ylabel("cloud in view", fontsize=8)
+    fig.tight_layout()
     return fig
 
 

@@ -18,6 +18,7 @@ looks complete. Both ``reproduce`` and ``study`` go through here.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -66,9 +67,10 @@ class RunSpec:
         sim = self.config.simulation
         return make_scene(sim.scenario, sim.seed)
 
-    @property
+    @functools.cached_property
     def key(self) -> str:
-        """SHA-256 (hex) of the configuration, ``max_steps`` and the scene's fingerprint."""
+        """SHA-256 (hex) of the configuration, ``max_steps`` and the scene's fingerprint
+        (computed once per spec: building a random scene takes milliseconds to a second)."""
         return run_key(self.config, self.max_steps, self.scene().fingerprint())
 
     def directory(self, results_dir=None) -> Path:

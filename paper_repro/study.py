@@ -41,7 +41,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import paths
-from .config import Config, SimulationParams
+from .config import Config, SensorParams, SimulationParams
 from .runs import RunSpec, ensure_result
 
 PASSAGE_STEPS = 15_000
@@ -119,9 +119,10 @@ def passage_config(base: Config | None = None, seed: int = 0, max_steps: int = P
 
 def passage_spec(seed: int, metric: str = "smooth", eta: float | None = None,
                  sigma: float | None = None, max_steps: int = PASSAGE_STEPS,
-                 base: Config | None = None) -> RunSpec:
-    """A passage through random scene ``seed``; the name says what differs from ``base``, so
-    the same flight has the same name (and cache folder) in every study that asks for it."""
+                 base: Config | None = None, tag: str = "") -> RunSpec:
+    """A passage through random scene ``seed``; the name says what differs from ``base`` (and
+    ``tag`` anything else a study varies), so the same flight has the same name (and cache
+    folder) in every study that asks for it."""
     base = base or Config()
     over = {"metric": metric}
     if metric == "smooth":
@@ -129,7 +130,8 @@ def passage_spec(seed: int, metric: str = "smooth", eta: float | None = None,
                     sigma=base.distance.sigma if sigma is None else sigma)
     cfg = passage_config(base, seed, max_steps, **over)
     name = (f"passage-smooth-eta{cfg.distance.eta:g}-sigma{cfg.distance.sigma:g}"
-            if metric == "smooth" else f"passage-{metric}") + f"-s{seed:03d}"
+            if metric == "smooth" else f"passage-{metric}") + (f"-{tag}" if tag else "") + \
+        f"-s{seed:03d}"
     labels = (("metric", metric),
               ("eta", cfg.distance.eta if metric == "smooth" else 0.0),
               ("sigma", cfg.distance.sigma if metric == "smooth" else float("nan")),
@@ -189,7 +191,36 @@ def eta_sweep(quick: bool = False, scenes: int | None = None, etas: Sequence[flo
                  "passages")
 
 
-STUDIES: dict[str, Callable[..., Study]] = {"monte_carlo": monte_carlo, "eta_sweep": eta_sweep}
+NOISY_LIDAR = SensorParams(range_noise=0.05, dropout=0.2, spurious_rate=2.0)
+"""The sensor of :func:`sensor_noise`: 5 cm range noise (1σ), one point in five lost, two
+spurious returns per scan on average; seeded per scene."""
+
+
+def sensor_noise(quick: bool = False, scenes: int | None = None,
+                 base: Config | None = None) -> Study:
+    """Smooth against Euclidean with a perfect and a noisy LiDAR (:data:`NOISY_LIDAR`), on
+    ``scenes`` random passages (20; 2 with ``quick``). The smoothed distance averages many
+    points where the Euclidean one follows the nearest, so noise should widen the gap."""
+    n = scenes if scenes is not None else (2 if quick else 20)
+    _require_count("scenes", n)
+    base = base or Config()
+    steps = QUICK_STEPS if quick else PASSAGE_STEPS
+    specs = []
+    for level, sensor in (("perfect", base.sensor), ("noisy", NOISY_LIDAR)):
+        for metric in ("smooth", "euclidean"):
+            for seed in range(n):
+                cfg = dataclasses.replace(base, sensor=dataclasses.replace(sensor, seed=seed)
+                                          if level == "noisy" else sensor)
+                spec = passage_spec(seed, metric, max_steps=steps, base=cfg,
+                                    tag="" if level == "perfect" else "noisy")
+                specs.append(dataclasses.replace(spec, labels=spec.labels
+                                                 + (("sensor", level),)))
+    return Study("sensor_noise" + ("-quick" if quick else ""), tuple(specs),
+                 f"smooth vs euclidean, perfect vs noisy LiDAR ({NOISY_LIDAR}), {n} passages")
+
+
+STUDIES: dict[str, Callable[..., Study]] = {"monte_carlo": monte_carlo, "eta_sweep": eta_sweep,
+                                            "sensor_noise": sensor_noise}
 """The studies ``python -m paper_repro study NAME`` knows."""
 
 
@@ -341,7 +372,8 @@ def main(args) -> int:
     return 0
 
 
-STUDY_NOTEBOOKS = {"monte_carlo": "09_monte_carlo", "eta_sweep": "10_eta_sweep"}
+STUDY_NOTEBOOKS = {"monte_carlo": "09_monte_carlo", "eta_sweep": "10_eta_sweep",
+                   "sensor_noise": "13_sensor_noise"}
 """The notebook that draws each study's figures from its saved table."""
 
 
@@ -431,8 +463,9 @@ def _warm(key: str) -> None:
 
 
 def _controller_key(config: Config) -> str:
-    """What a controller depends on: the configuration without its ``simulation`` part."""
-    neutral = dataclasses.replace(config, simulation=SimulationParams())
+    """What a controller depends on: the configuration without its ``simulation`` and
+    ``sensor`` parts (the scene, the run and the LiDAR are the closed loop's, not its)."""
+    neutral = dataclasses.replace(config, simulation=SimulationParams(), sensor=SensorParams())
     return json.dumps(neutral.to_dict(), sort_keys=True, default=str)
 
 

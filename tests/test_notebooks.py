@@ -20,7 +20,8 @@ SPECS = {nb.name: nb for nb in R.NOTEBOOKS}
 TINY = Config(nmpc=NMPCParams(region_slots=1, points_per_region=64))
 TINY_STEPS = 150
 # On top of each notebook's own quick parameters: fewer frames, a coarser tutorial grid.
-CI_OVERRIDES = {"08_animation": {"frames": 4}, "07_distance_tutorial": {"grid_points": 40}}
+CI_OVERRIDES = {"08_animation": {"frames": 4}, "07_distance_tutorial": {"grid_points": 40},
+                "11_timeline": {"max_steps": 200}}
 
 
 @pytest.fixture(scope="session")
@@ -36,6 +37,8 @@ STUDY_OUTPUTS = {
     "09_monte_carlo": ("mc_summary.csv", "mc_outcome_rates.png", "mc_paired_chattering.png",
                        "mc_clearance_ecdf.png", "mc_solve_times.png"),
     "10_eta_sweep": ("eta_sweep_settings.csv", "eta_sweep_eta.png", "eta_sweep_sigma.png"),
+    "13_sensor_noise": ("sensor_noise_paired.csv", "sensor_noise_cost.csv",
+                        "sensor_noise_ratios.png"),
 }
 
 
@@ -50,7 +53,7 @@ def quick_studies(tmp_path_factory):
 
 def test_every_notebook_is_registered_and_every_registered_one_exists():
     assert NOTEBOOK_FILES, "no notebook found"
-    assert {p.stem for p in NOTEBOOK_FILES} == set(SPECS) | set(STUDY_NOTEBOOKS)
+    assert {p.stem for p in NOTEBOOK_FILES} == set(SPECS) | set(STUDY_NOTEBOOKS) | {TUNING}
 
 
 @pytest.mark.parametrize("path", NOTEBOOK_FILES, ids=lambda p: p.stem)
@@ -73,6 +76,9 @@ def test_exactly_one_parameters_cell_and_reproduce_passes_only_declared_names(pa
     assert len(tagged) == 1 and tagged[0].cell_type == "code"
     declared = R.declared_parameters(path)
     assert "figures_dir" in declared
+    if path.stem == TUNING:
+        assert "tuning_dir" in declared
+        return
     if path.stem in STUDY_NOTEBOOKS:
         assert "study_dir" in declared
         return
@@ -88,6 +94,8 @@ def test_notebook_executes_with_quick_parameters(name, tiny_results, tmp_path):
     figures = tmp_path / "figures"
     params = R.notebook_parameters(spec, tiny_results, figures, quick=True,
                                    overrides=CI_OVERRIDES.get(name))
+    if name == "11_timeline":  # its flights: short, and cached in the test's folder
+        params.update(runs_dir=str(tmp_path / "runs"), study_dir=str(tmp_path / "study"))
     out = R.execute_notebook(R.notebook_path(name), tmp_path / f"{name}.ipynb", params)
 
     executed = nbformat.read(out, as_version=4)
@@ -122,9 +130,46 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, tmp_path
         # every run in exactly one class
         per_metric = rates[rates["event"] != "collision"].groupby("metric")["k"].sum()
         assert (per_metric == 3).all()
-    else:
+    elif name == "10_eta_sweep":
         settings = pd.read_csv(figures / "eta_sweep_settings.csv")
         assert len(settings) == 3 and (settings["runs"] == 2).all()
+    else:
+        paired = pd.read_csv(figures / "sensor_noise_paired.csv")
+        assert set(paired["sensor"]) == {"perfect", "noisy"} and (paired["scenes"] == 2).all()
+
+
+TUNING = "12_tuning"
+TUNING_OUTPUTS = ("tuning_front.png", "tuning_importances.png", "tuning_heldout.png",
+                  "tuning_pareto.csv", "tuning_importances.csv", "tuning_heldout_summary.csv")
+
+
+@pytest.fixture(scope="session")
+def quick_tuning(tmp_path_factory):
+    """A quick tuning study (σ and d_min on two 60-step passages: at most one new C build),
+    its held-out flights on two scenes, all in the test's folders."""
+    from paper_repro import tuning
+
+    base = tmp_path_factory.getbasetemp() / "tuning"
+    res = tuning.tune(3, quick=True, workers=0, base=TINY, seeds=(0, 1), max_steps=60,
+                      space={"sigma": None, "d_min": (1.0, 1.5, 0.5)}, out=base / "out",
+                      runs_dir=base / "runs", log=lambda line: None)
+    tuning.run_heldout(res, 2, runs_dir=base / "runs", log=lambda line: None)
+    return res
+
+
+def test_tuning_notebook_draws_from_the_saved_study(quick_tuning, tmp_path):
+    figures = tmp_path / "figures"
+    out = R.execute_notebook(R.notebook_path(TUNING), tmp_path / f"{TUNING}.ipynb",
+                             {"tuning_dir": str(quick_tuning.directory),
+                              "figures_dir": str(figures), "n_resamples": 200})
+    code = [c for c in nbformat.read(out, as_version=4).cells if c.cell_type == "code"]
+    assert not any(o.get("output_type") == "error" for c in code for o in c.outputs)
+    for f in TUNING_OUTPUTS:
+        assert (figures / f).is_file() and (figures / f).stat().st_size > 0, f
+    summary = pd.read_csv(figures / "tuning_heldout_summary.csv")
+    rates = summary[summary["kind"] == "rate"]
+    assert set(rates["setup"]) == {"printed", "best_chattering", "best_time"}
+    assert (rates["n"] == 2).all()
 
 
 def test_unknown_parameter_raises_before_execution(tmp_path):

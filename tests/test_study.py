@@ -175,3 +175,18 @@ def test_progress_lines_when_not_a_terminal(tmp_path):
     assert lines[0] == "study tiny: 2 runs"
     assert any(line.startswith("study tiny: 2/2 runs, 0 failed") for line in lines)
     assert "2 runs (2 flown, 0 failed)" in lines[-1]
+
+
+def test_the_noise_study_shares_its_perfect_runs_and_perturbs_the_others():
+    noise, mc = S.sensor_noise(), {s.name: s.key for s in S.monte_carlo().specs}
+    perfect = [s for s in noise.specs if dict(s.labels)["sensor"] == "perfect"]
+    noisy = [s for s in noise.specs if dict(s.labels)["sensor"] == "noisy"]
+    assert len(perfect) == len(noisy) == 40
+    assert all(mc.get(s.name) == s.key for s in perfect)  # the same flights, one cache folder
+    assert not any(s.name in mc for s in noisy)
+    # The noisy sensor changes what the controller sees, reproducibly per scene.
+    spec = dataclasses.replace(noisy[0], max_steps=40)
+    a, b = simulate(spec.config, progress=False), simulate(spec.config, progress=False)
+    clean = simulate(perfect[0].config, max_steps=40, progress=False)
+    np.testing.assert_array_equal(a.x, b.x)
+    assert not np.array_equal(a.visible_points, clean.visible_points)
