@@ -1,0 +1,204 @@
+"""Tuning with Optuna: bad input named before anything flies, the objectives and constraints of
+a trial from its table, an infeasible trial never on the front, a resumed study that continues.
+
+The closed-loop tests tune σ alone (it is not compiled into the solver's C, so no new build) on
+one tiny passage of 40 steps, one LiDAR slot of 64 points.
+"""
+
+import math
+
+import numpy as np
+import optuna
+import pandas as pd
+import pytest
+
+from paper_repro import Config, NMPCParams
+from paper_repro import study as S
+from paper_repro import tuning as T
+
+TINY = Config(nmpc=NMPCParams(region_slots=1, points_per_region=64))
+SIGMA_ONLY = {"sigma": (0.4, 1.6, 0.05)}
+
+
+# --- bad input ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("space, message", [
+    ({"eta": (0.3, 0.3)}, r"eta: the range \[0.3, 0.3\] is empty"),
+    ({"d_min": (2.0, 0.5)}, r"d_min: lower bound 2 is above the upper bound 0.5"),
+    ({"delta": (0.5, 1.2)}, r"delta: the range \[0.5, 1.2\] lies outside what the "
+                            r"configuration accepts \(delta must lie in \(0, 1\)"),
+    ({"kappa": (-1.0, 10.0)}, r"kappa: the range .* lies outside .*\(kappa must be"),
+    ({"mu": (1e4, 2.5e4, 1e4)}, r"mu: high - low = 15000 must be a whole number of steps"),
+    ({"lam": (0.9, 0.99)}, r"parameter must be one of .* got 'lam'"),
+    ({}, r"at least one parameter"),
+])
+def test_a_bad_range_names_its_parameter_before_any_trial(space, message, monkeypatch, tmp_path):
+    def never(*a, **k):
+        raise AssertionError("a run was started")
+
+    monkeypatch.setattr(T, "run_study", never)
+    with pytest.raises(ValueError, match=message):
+        T.tune(2, workers=0, space=space, seeds=(0,), out=tmp_path, runs_dir=tmp_path / "r")
+    assert not (tmp_path / "tuning.db").exists()
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"objectives": ("chattering", "time_to_complete_s")}, "objective must be one of"),
+    ({"objectives": ()}, "objectives must name at least one"),
+    ({"objectives": ("hf_energy_fraction",) * 2}, "objectives must not repeat"),
+    ({"trials": 0}, "trials must be an integer >= 1"),
+    ({"storage": "tuning.db"}, "storage must be an RDB URL"),
+    ({"sampler": "cmaes"}, "sampler must be one of"),
+    ({"seeds": (61,)}, r"training scenes must not be held-out scenes .* \[61\]"),
+])
+def test_other_bad_input_is_named(kwargs, message, monkeypatch, tmp_path):
+    monkeypatch.setattr(T, "run_study", lambda *a, **k: pytest.fail("a run was started"))
+    args = {"trials": 2, "workers": 0, "seeds": (0,), "out": tmp_path,
+            "runs_dir": tmp_path / "r"} | kwargs
+    with pytest.raises(ValueError, match=message):
+        T.tune(**args)
+
+
+def test_every_default_range_holds_the_printed_value_on_its_grid():
+    printed = T.printed_params()
+    for name, r in T.search_space().items():
+        assert r.values() is not None and np.any(np.isclose(r.values(), printed[name])), name
+        assert r.why
+
+
+# --- objectives and constraints from a table ------------------------------------------------
+
+def _table(**cols):
+    n = len(next(iter(cols.values())))
+    base = {"status": ["ok"] * n, "completed": [True] * n, "stalled": [False] * n,
+            "collision": [False] * n, "min_clearance_m": [1.2] * n,
+            "time_to_complete_s": [40.0] * n, "hf_energy_fraction": [0.1] * n,
+            "tv_u_rate_N_per_s": [1.0] * n}
+    return pd.DataFrame(base | cols)
+
+
+def test_objectives_are_scene_means_and_a_safe_trial_is_feasible():
+    t = _table(hf_energy_fraction=[0.1, 0.3], time_to_complete_s=[40.0, 60.0],
+               min_clearance_m=[0.9, 0.7])
+    values, con = T.evaluate_table(t, ("hf_energy_fraction", "time_to_complete_s"))
+    assert values == pytest.approx((0.2, 50.0))
+    assert con == pytest.approx((0.5 - 0.7, 0.0, 0.0)) and max(con) <= 0
+
+
+def test_a_stall_a_collision_or_a_raised_run_makes_the_trial_infeasible():
+    t = _table(completed=[True, False, True], stalled=[False, True, False],
+               time_to_complete_s=[40.0, math.nan, 50.0],
+               min_clearance_m=[1.0, 1.0, 0.3], collision=[False, False, True])
+    values, con = T.evaluate_table(t, ("time_to_complete_s",), time_limit_s=150.0)
+    assert values[0] == pytest.approx((40 + 150 + 50) / 3)  # the stall counts the limit
+    assert con == pytest.approx((0.2, 1.0, 1.0))
+    failed = _table(status=["ok", "failed"], hf_energy_fraction=[0.2, math.nan],
+                    completed=[True, False])
+    values, con = T.evaluate_table(failed, ("hf_energy_fraction",))
+    assert values[0] == pytest.approx(0.2) and con[2] == 1  # finite, and infeasible
+
+
+def test_without_required_completion_only_stalls_count():
+    t = _table(completed=[False, False], stalled=[False, True])
+    assert T.evaluate_table(t, require_completion=False)[1][2] == 1
+    assert T.evaluate_table(t, require_completion=True)[1][2] == 2
+
+
+# --- the front ------------------------------------------------------------------------------
+
+def _study_by_hand(points):
+    """An in-memory study of finished trials ``(sigma, chattering, time, constraints)``."""
+    study = optuna.create_study(directions=["minimize", "minimize"])
+    study.set_user_attr("objectives", list(T.DEFAULT_OBJECTIVES))
+    study.set_user_attr("space", {"sigma": [0.4, 1.6, 0.05]})
+    dist = {"sigma": optuna.distributions.FloatDistribution(0.4, 1.6, step=0.05)}
+    for sigma, chat, tm, con in points:
+        study.add_trial(optuna.trial.create_trial(
+            params={"sigma": sigma}, distributions=dist, values=[chat, tm],
+            user_attrs={"constraints": list(con)},
+            system_attrs={"constraints": tuple(con)}))  # what constraints_func stores
+    return study
+
+
+def test_an_infeasible_trial_is_never_reported_as_best():
+    ok = (-0.1, 0.0, 0.0)
+    study = _study_by_hand([
+        (0.8, 0.10, 50.0, ok),               # printed
+        (0.5, 0.001, 1.0, (0.4, 1.0, 2.0)),  # dominates everything, but stalls and collides
+        (1.0, 0.05, 60.0, ok),
+        (1.2, 0.20, 45.0, ok),
+        (1.4, 0.30, 70.0, ok),               # dominated
+    ])
+    frame = T.trials_frame(study)
+    infeasible = frame[frame["number"] == 1].iloc[0]
+    assert not infeasible["feasible"] and not infeasible["pareto"]
+    assert set(frame.loc[frame["pareto"], "number"]) == {0, 2, 3}
+    # Optuna's own front (constraints from the system attribute) agrees.
+    assert {t.number for t in study.best_trials} == {0, 2, 3}
+    best = T.best_setups(frame)
+    assert best["best_chattering"]["trial"] == 2 and best["best_time"]["trial"] == 3
+    pos = T.printed_position(frame)
+    assert pos["on_front"] and pos["dominated_by"] == 0
+    # The sampler sees the same constraints.
+    assert T._constraints(study.trials[1]) == [0.4, 1.0, 2.0]
+
+
+def test_no_feasible_trial_means_no_front_to_pick_from():
+    study = _study_by_hand([(0.8, 0.1, 50.0, (0.1, 0.0, 1.0))])
+    with pytest.raises(ValueError, match="no feasible trial"):
+        T.best_setups(T.trials_frame(study))
+
+
+# --- closed loop: resume --------------------------------------------------------------------
+
+def _tune(tmp_path, trials, **kw):
+    return T.tune(trials, quick=True, workers=0, space=SIGMA_ONLY, seeds=(0,), max_steps=40,
+                  base=TINY, out=tmp_path / "tuning", runs_dir=tmp_path / "runs",
+                  log=lambda line: None, **kw)
+
+
+def test_a_resumed_study_continues_the_trial_count(tmp_path):
+    class DriverKilled(Exception):
+        pass
+
+    def stop_after_two(study, trial):
+        if trial.number == 1:
+            raise DriverKilled
+
+    with pytest.raises(DriverKilled):
+        _tune(tmp_path, 4, callbacks=[stop_after_two])
+    first = T.load_study(tmp_path / "tuning")
+    done = {t.number: t.values for t in T._finished(first)}
+    assert sorted(done) == [0, 1]
+    assert first.trials[0].params == {"sigma": 0.8}  # trial 0 is the printed set-up
+    first.ask()  # a trial left running by a driver that was killed
+
+    again = _tune(tmp_path, 4)
+    finished = T._finished(again.study)
+    assert len(finished) == 4 and again.flown_trials == 2  # not 4: nothing started over
+    assert {t.number: t.values for t in finished if t.number in done} == done
+    assert min(t.number for t in finished if t.number not in done) > max(done)
+    assert again.study.trials[2].state == optuna.trial.TrialState.FAIL  # the stale one
+    # A third call with everything done flies nothing.
+    assert _tune(tmp_path, 4).flown_trials == 0
+
+
+def test_a_resumed_study_must_be_the_same_study(tmp_path):
+    _tune(tmp_path, 1)
+    with pytest.raises(ValueError, match="max_steps: the stored study"):
+        T.tune(2, quick=True, workers=0, space=SIGMA_ONLY, seeds=(0,), max_steps=30,
+               base=TINY, out=tmp_path / "tuning", runs_dir=tmp_path / "runs",
+               log=lambda line: None)
+
+
+def test_heldout_scenes_are_never_training_scenes_and_shared_setups_fly_once(tmp_path):
+    setups = {"printed": T.printed_params(TINY), "best_time": T.printed_params(TINY)}
+    with pytest.raises(ValueError, match=r"held-out scenes must never be training .* \[3\]"):
+        T.evaluate_heldout(setups, seeds=(3,), train_seeds=(3,), workers=0)
+    table = T.evaluate_heldout(setups, seeds=(60,), max_steps=30, base=TINY, workers=0,
+                               out=tmp_path / "h", runs_dir=tmp_path / "runs",
+                               log=lambda line: None)
+    assert list(table["setup"]) == ["printed", "best_time"]
+    assert table["result_dir"].nunique() == 1  # one flight serves both set-ups
+    spec = T.tuning_spec(T.printed_params(TINY), 60, 30, TINY)
+    assert spec.name == S.passage_spec(60, max_steps=30, base=TINY).name  # Monte Carlo's cache
