@@ -1,7 +1,6 @@
 """Command line: ``python -m paper_repro {run,scene,reproduce} ...``.
 
     python -m paper_repro run --scenario encounter --metric smooth --max-steps 500 --out results/x
-    python -m paper_repro run --scenario random --seed 3 --kind passage --out results/passage
     python -m paper_repro scene --scenario paper
     python -m paper_repro reproduce [--quick]
     python -m paper_repro study monte_carlo [--quick] [--workers N] [--scheduler ADDRESS]
@@ -48,13 +47,7 @@ def _main(argv: list[str] | None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
 
     run = sub.add_parser("run", help="fly one closed-loop mission and save its result")
-    run.add_argument("--scenario", choices=("paper", "encounter", "random"), default="paper")
-    run.add_argument("--seed", type=_reproduce.non_negative_int, default=None,
-                     help="scene seed (Halton clouds; the layout of a random scene); default "
-                          "the config's")
-    run.add_argument("--kind", choices=("mission", "passage"), default="mission",
-                     help="mission: reach every target; passage: end 2 m past a random "
-                          "scene's obstacle field")
+    run.add_argument("--scenario", choices=("paper", "encounter"), default="paper")
     run.add_argument("--metric", choices=("smooth", "euclidean"), default="smooth")
     run.add_argument("--solver", choices=("rti", "reference"), default="rti",
                      help="rti: Gauss-Newton real-time iteration (default); reference: IPOPT, "
@@ -66,14 +59,9 @@ def _main(argv: list[str] | None) -> int:
                      help="limit on closed-loop steps (default: the config's max_steps)")
     run.add_argument("--out", required=True, help="directory for result.npz and config.json")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    run.add_argument("--preset", default="paper", metavar="NAME",
-                     help="named set-up (paper_repro.presets): 'paper' (default, the printed "
-                          "parameters) or 'paper-timeline' (the paper's clock)")
 
     scene = sub.add_parser("scene", help="print a scene and a distance table")
-    scene.add_argument("--scenario", choices=("paper", "encounter", "random"), default="paper")
-    scene.add_argument("--seed", type=_reproduce.non_negative_int, default=None,
-                       help="scene seed (default: the config's)")
+    scene.add_argument("--scenario", choices=("paper", "encounter"), default="paper")
 
     reproduce = sub.add_parser(
         "reproduce", help="simulate what is missing, run every notebook, write figures/",
@@ -96,10 +84,6 @@ def _main(argv: list[str] | None) -> int:
 
     args = parser.parse_args(argv)
     # Every option is checked here, before a scene, a controller or a flight is built.
-    if getattr(args, "preset", None) is not None:
-        from .presets import check_name
-
-        check_name(args.preset)
     if args.command == "run":
         args.out = _output_directory("--out", args.out)
     if args.command == "reproduce" and args.figures_dir is not None:
@@ -116,17 +100,14 @@ def _main(argv: list[str] | None) -> int:
 
 
 def _run(args) -> int:
-    from .presets import preset
     from .simulation import simulate
 
-    cfg = preset(args.preset)
+    cfg = Config()
     cfg = dataclasses.replace(
         cfg,
         distance=dataclasses.replace(cfg.distance, metric=args.metric),
         nmpc=dataclasses.replace(cfg.nmpc, solver=args.solver, qp_solver=args.qp_solver),
-        simulation=dataclasses.replace(
-            cfg.simulation, scenario=args.scenario, kind=args.kind,
-            seed=cfg.simulation.seed if args.seed is None else args.seed),
+        simulation=dataclasses.replace(cfg.simulation, scenario=args.scenario),
     )
     result = simulate(cfg, max_steps=args.max_steps,
                       progress=False if args.no_progress else None)
@@ -157,8 +138,7 @@ def _scene(args) -> int:
     from .scene import make_scene
 
     cfg = Config()
-    scene = make_scene(args.scenario,
-                       cfg.simulation.seed if args.seed is None else args.seed)
+    scene = make_scene(args.scenario, cfg.simulation.seed)
     eta, sigma = cfg.distance.eta, cfg.distance.sigma
     print(f"scene {scene.name!r}: start {list(scene.start)}, targets "
           f"{[list(t) for t in scene.targets]}")
