@@ -184,7 +184,8 @@ def simulate(config: Config | None = None, controller: TrackingNMPC | None = Non
         the slow part, so pass one in when flying several missions). It is reset first
         (:meth:`reset`), so a flight is the same whether the controller is new or reused.
     max_steps : overrides ``config.simulation.max_steps``.
-    progress : show a progress bar (default: only when writing to a terminal).
+    progress : a progress bar (``True``; default: only when writing to a terminal), or a
+        callable that receives a plain progress line every 30 s (for logs).
     scene : fly this scene instead of ``config.simulation.scenario`` (e.g. your own regions, or
         a variant made with ``dataclasses.replace``); it is saved with the result.
     faults : sensor faults to inject (:class:`Faults`); none by default.
@@ -313,7 +314,11 @@ def run_metadata() -> dict:
             "cpu_count": __import__("os").cpu_count()}
 
 
-def _progress_bar(total: int, progress: bool | None):
+def _progress_bar(total: int, progress):
+    """A tqdm bar (``True``, or ``None`` on a terminal), plain lines handed to ``progress``
+    every 30 s (a callable: for logs), or nothing."""
+    if callable(progress):
+        return _ProgressLines(total, progress)
     if progress is None:
         progress = sys.stderr.isatty()
     if not progress:
@@ -390,3 +395,28 @@ def _finite_points(visible) -> tuple[list[np.ndarray], int]:
             clean.append(v[ok])
             dropped += int(len(v) - ok.sum())
     return clean, dropped
+
+
+class _ProgressLines:
+    """The part of tqdm's interface :func:`simulate` uses, as a line every ``interval`` s."""
+
+    def __init__(self, total: int, log, interval: float = 30.0):
+        self.total, self.log, self.interval = total, log, interval
+        self.n, self.postfix = 0, {}
+        self.start = self.last = time.perf_counter()
+
+    def update(self, n: int) -> None:
+        self.n += n
+        now = time.perf_counter()
+        if now - self.last >= self.interval:
+            self.last = now
+            rate = self.n / (now - self.start)
+            extra = ", ".join(f"{k} {v}" for k, v in self.postfix.items())
+            self.log(f"  closed loop: {self.n} steps ({rate:.0f} steps/s; at most "
+                     f"{self.total}){', ' + extra if extra else ''}")
+
+    def set_postfix(self, **values) -> None:
+        self.postfix = values
+
+    def close(self) -> None:
+        pass
