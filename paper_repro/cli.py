@@ -59,6 +59,9 @@ def _main(argv: list[str] | None) -> int:
                      help="limit on closed-loop steps (default: the config's max_steps)")
     run.add_argument("--out", required=True, help="directory for result.npz and config.json")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    run.add_argument("--preset", default="paper", metavar="NAME",
+                     help="named set-up (paper_repro.presets): 'paper' (default, the printed "
+                          "parameters) or 'paper-timeline' (the paper's clock)")
 
     scene = sub.add_parser("scene", help="print a scene and a distance table")
     scene.add_argument("--scenario", choices=("paper", "encounter"), default="paper")
@@ -84,6 +87,10 @@ def _main(argv: list[str] | None) -> int:
 
     args = parser.parse_args(argv)
     # Every option is checked here, before a scene, a controller or a flight is built.
+    if getattr(args, "preset", None) is not None:
+        from .presets import check_name
+
+        check_name(args.preset)
     if args.command == "run":
         args.out = _output_directory("--out", args.out)
     if args.command == "reproduce" and args.figures_dir is not None:
@@ -100,9 +107,10 @@ def _main(argv: list[str] | None) -> int:
 
 
 def _run(args) -> int:
+    from .presets import preset
     from .simulation import simulate
 
-    cfg = Config()
+    cfg = preset(args.preset)
     cfg = dataclasses.replace(
         cfg,
         distance=dataclasses.replace(cfg.distance, metric=args.metric),

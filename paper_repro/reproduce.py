@@ -85,7 +85,7 @@ NOTEBOOKS = (
     NotebookSpec("03_thrusts", "Fig. 4, thrusts", ("smooth",),
                  _figure("fig04_thrusts", "fig04_thrusts_zoom")),
     NotebookSpec("04_tracking_errors", "Fig. 5, tracking errors", ("smooth",),
-                 _figure("fig05_tracking_errors")),
+                 _figure("fig05_tracking_errors", "fig05_tracking_errors_abs")),
     NotebookSpec("05_euclidean", "Figs. 6-8, Euclidean run", ("euclidean",),
                  _figure("fig06_euclidean_states", "fig07_euclidean_tracking_errors",
                          "fig08_euclidean_thrusts", "fig08_euclidean_thrusts_zoom")),
@@ -97,6 +97,11 @@ NOTEBOOKS = (
                  quick={"grid_points": 60}),
     NotebookSpec("08_animation", "animation of the flight", ("smooth",), ("flight.gif",),
                  quick={"frames": 20}),
+    NotebookSpec("11_timeline", "the paper's clock (issue 12): levers and flights", (),
+                 tuple(f"timeline/{f}" for f in (
+                     *_figure("timeline_levers", "timeline_flights"), "timeline_levers.csv",
+                     "timeline_flights.csv")),
+                 quick={"quick": True}),
 )
 """Every notebook, in the order :func:`reproduce` executes them."""
 
@@ -229,7 +234,8 @@ class ReproduceReport:
 def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = False,
               notebooks=None, config: Config | None = None, figures_dir=None,
               results_dir=None, executed_dir=None, overrides: dict | None = None,
-              progress: bool | None = None, log=print) -> ReproduceReport:
+              progress: bool | None = None, log=print,
+              preset: str | None = None) -> ReproduceReport:
     """Simulate what is missing, execute the notebooks, write the figures and the summary.
 
     Parameters
@@ -243,8 +249,21 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
     overrides : extra notebook parameters, passed to every notebook that declares them.
     progress : closed-loop progress bar (default: when writing to a terminal).
     log : called with one line per stage.
+    preset : a name of :data:`paper_repro.presets.PRESETS`, applied to ``config``; any but
+        ``"paper"`` (the printed parameters) writes into ``figures/presets/<name>/`` (and
+        ``notebooks/executed/presets/<name>/``) unless the folders are given.
     """
     start = time.perf_counter()
+    if preset is not None:
+        from . import presets as _presets
+
+        config = _presets.preset(preset, base=config)
+        if preset != _presets.DEFAULT:
+            sub = Path("presets") / preset
+            figures_dir = figures_dir if figures_dir is not None else (
+                paths.figures_dir(quick) / sub)
+            executed_dir = executed_dir if executed_dir is not None else (
+                paths.executed_dir(quick) / sub)
     specs = run_specs(quick=quick, max_steps=max_steps, config=config)
     selected = _select_notebooks(notebooks)
     needed = {m for nb in selected for m in nb.runs}
@@ -326,6 +345,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "figures/quick/ with --quick)")
     parser.add_argument("--no-progress", action="store_true",
                         help="hide the closed-loop progress bar")
+    parser.add_argument("--preset", default="paper", metavar="NAME",
+                        help="named set-up (paper_repro.presets): 'paper' (default, the printed "
+                             "parameters) or 'paper-timeline' (the paper's clock, N = 43); "
+                             "figures of a preset other than 'paper' go to "
+                             "figures/presets/NAME/")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -337,7 +361,7 @@ def main(args: argparse.Namespace) -> int:
     reproduce(quick=args.quick, max_steps=args.max_steps, force=args.force,
               notebooks=args.notebooks, config=config, figures_dir=args.figures_dir,
               progress=False if args.no_progress else None,
-              log=lambda line: print(line, flush=True))
+              log=lambda line: print(line, flush=True), preset=args.preset)
     return 0
 
 

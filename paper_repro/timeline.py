@@ -31,6 +31,8 @@ few milliradians). :func:`predicted_mission_time` therefore flies an obstacle-fr
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import casadi as ca
@@ -183,6 +185,203 @@ def predicted_mission_time(config: Config | None = None, start=(22.0, -22.0, 0.0
             break
         state = e + rest
     return times, float(times[-1])
+
+
+# --- levers: the clock under one changed parameter ------------------------------------------
+
+def _scaled(values, factor, indices=None):
+    out = list(values)
+    for i in indices if indices is not None else range(len(out)):
+        out[i] = float(out[i]) * factor
+    return tuple(out)
+
+
+LEVERS: dict[str, tuple[str, Callable]] = {
+    "T": ("T / T_printed", lambda p, v: {"t": _scaled(p.t, v)}),
+    "R": ("R / R_printed", lambda p, v: {"r": _scaled(p.r, v)}),
+    "rate weights": ("Q_rates / printed (φ̇, θ̇, ψ̇)",
+                     lambda p, v: {"q": _scaled(p.q, v, (9, 10, 11))}),
+    "N": ("N", lambda p, v: {"horizon": int(v)}),
+    "prediction_ts": ("h [s]", lambda p, v: {"prediction_ts": float(v)}),
+}
+"""The parameters that set the clock: name → (axis label, ``(NMPCParams, value) -> overrides``).
+T, R and the rate weights are scaled by the value (1 is printed); N and h are set to it."""
+
+
+def lever_config(lever: str, value: float, base: Config | None = None) -> Config:
+    """``base`` (default :class:`Config`) with one lever of :data:`LEVERS` set to ``value``."""
+    if lever not in LEVERS:
+        raise ValueError(f"lever must be one of {sorted(LEVERS)}, got {lever!r}")
+    base = base or Config()
+    over = LEVERS[lever][1](base.nmpc, value)
+    return dataclasses.replace(base, nmpc=dataclasses.replace(base.nmpc, **over))
+
+
+def lever_sweep(lever: str, values, base: Config | None = None):
+    """The linear loop's clock with one lever set to each of ``values``.
+
+    Parameters
+    ----------
+    lever : a key of :data:`LEVERS`.
+    values : factors (T, R, rate weights; 1 is printed) or values (N; h in s).
+    base : the configuration changed (default :class:`Config`).
+
+    Returns
+    -------
+    pandas DataFrame, one row per value: ``lever``, ``value``, ``tau_lateral_s``,
+    ``tau_vertical_s``, ``first_target_s`` and ``mission_time_s`` of the obstacle-free paper
+    mission (:func:`predicted_mission_time`), ``mission_ratio`` (to 500 s).
+    """
+    import pandas as pd
+
+    rows = []
+    for v in values:
+        cfg = lever_config(lever, v, base)
+        an = clock(cfg)
+        times, total = predicted_mission_time(cfg, analysis=an)
+        rows.append({"lever": lever, "value": float(v), "tau_lateral_s": an.tau_lateral_s,
+                     "tau_vertical_s": an.tau_vertical_s, "first_target_s": float(times[0]),
+                     "mission_time_s": total, "mission_ratio": total / PAPER_MISSION_TIME_S})
+    return pd.DataFrame(rows)
+
+
+# --- flights: the clock of a closed-loop run -------------------------------------------------
+
+PAPER_MISSION_TIME_S = 500.0
+"""s, the end of the paper's time axes (ticks 0…50, "×10", Figs. 4–8): the paper's mission."""
+
+PAPER_AVOIDANCE_S = (50.0, 120.0)
+"""s, "between 50 and 120 seconds": when the paper's avoidance phases happen (Section V)."""
+
+CANDIDATES: dict[str, dict] = {
+    "printed": {},
+    "N = 42": {"horizon": 42},
+    "N = 43": {"horizon": 43},
+    "T × 2.66": {"t": (2660.0, 2660.0, 2660.0)},
+    "h = 0.0118 s": {"prediction_ts": 0.0118},
+}
+"""Readings of the printed set-up flown by :func:`timeline_study`: label → overrides of
+:class:`~paper_repro.config.NMPCParams`. Each is the single change that the linear loop
+(:func:`predicted_mission_time`) puts closest to 500 s in its own parameter."""
+
+QUICK_STEPS = 3_000
+"""Step limit of a quick timeline study (30 s of flight: what CI flies)."""
+
+
+def candidate_config(label: str, base: Config | None = None) -> Config:
+    """``base`` (default :class:`Config`) with the overrides of ``CANDIDATES[label]``."""
+    if label not in CANDIDATES:
+        raise ValueError(f"label must be one of {sorted(CANDIDATES)}, got {label!r}")
+    base = base or Config()
+    return dataclasses.replace(base, nmpc=dataclasses.replace(base.nmpc, **CANDIDATES[label]))
+
+
+def timeline_study(quick: bool = False, max_steps: int | None = None,
+                   labels=None, base: Config | None = None):
+    """The paper mission (``paper`` scene, obstacles, smoothed distance) under each candidate.
+
+    Parameters
+    ----------
+    quick : fly :data:`QUICK_STEPS` steps per run (the start of the mission only).
+    max_steps : explicit step limit (default: the config's, 200,000 = 2,000 s, i.e. the whole
+        mission under every candidate).
+    labels : which of :data:`CANDIDATES` (default: all).
+    base : configuration the candidates change (default :class:`Config`, the printed one).
+
+    Returns
+    -------
+    :class:`~paper_repro.study.Study` named ``timeline`` (``timeline-quick``). The printed
+    candidate's run is named ``paper-smooth``, as in ``reproduce``, so the two share its cache
+    folder when they share a cache root.
+    """
+    from .runs import RunSpec
+    from .study import Study
+
+    base = base or Config()
+    steps = max_steps if max_steps is not None else (
+        QUICK_STEPS if quick else base.simulation.max_steps)
+    specs = []
+    for label in labels if labels is not None else CANDIDATES:
+        cfg = candidate_config(label, base)
+        cfg = dataclasses.replace(cfg, simulation=dataclasses.replace(
+            cfg.simulation, scenario="paper", kind="mission", max_steps=steps))
+        p = cfg.nmpc
+        slug = "".join(c for c in label.replace(".", "p") if c.isalnum())
+        name = "paper-smooth" if label == "printed" else f"timeline-{slug}"
+        specs.append(RunSpec(name, cfg, steps, (
+            ("candidate", label), ("horizon", p.horizon), ("t_weight", p.t[0]),
+            ("prediction_ts", p.prediction_step))))
+    return Study("timeline" + ("-quick" if quick else ""), tuple(specs),
+                 "the paper mission under readings of the printed set-up (issue 12)")
+
+
+def first_target_time(result) -> float:
+    """s, when the first target was reached (NaN if it was not)."""
+    k = int(np.asarray(result.reached)[0])
+    return float(k * result.config.nmpc.ts) if k >= 0 else float("nan")
+
+
+def avoidance_windows(result, merge_gap_s: float = 5.0) -> np.ndarray:
+    """Intervals of the flight with a cloud within the LiDAR's range r_s (3 m).
+
+    A step is *in avoidance* when the LiDAR returns a point (``visible_points > 0``): only
+    then can a barrier term of eq. (20) act. Runs of such steps become intervals; two
+    intervals less than ``merge_gap_s`` apart are one phase (a UAV skimming the edge of the
+    sensing sphere sees a point come and go).
+
+    Parameters
+    ----------
+    result : a :class:`~paper_repro.simulation.SimulationResult`.
+    merge_gap_s : s, >= 0.
+
+    Returns
+    -------
+    (n, 2) array, s: start and end of each phase (end = time of its last step + T_s).
+    """
+    if not (np.isfinite(merge_gap_s) and merge_gap_s >= 0):
+        raise ValueError(f"merge_gap_s must be a finite number >= 0 (s), got {merge_gap_s!r}")
+    ts = result.config.nmpc.ts
+    seen = np.asarray(result.visible_points) > 0
+    edges = np.diff(np.concatenate([[0], seen.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    out: list[list[float]] = []
+    for a, b in zip(starts, ends, strict=True):
+        t0, t1 = float(result.t[a]), float(result.t[b - 1]) + ts
+        if out and t0 - out[-1][1] < merge_gap_s:
+            out[-1][1] = t1
+        else:
+            out.append([t0, t1])
+    return np.asarray(out, float).reshape(-1, 2)
+
+
+def flight_clock(result, merge_gap_s: float = 5.0) -> dict:
+    """The clock of one flight beside the paper's.
+
+    Returns
+    -------
+    dict: ``mission_time_s`` (last target reached, NaN if not), ``first_target_s``,
+    ``avoidance`` ((n, 2) s, :func:`avoidance_windows`), ``avoidance_span_s`` (start of the
+    first phase, end of the last; NaNs when none), ``mission_ratio`` (mission time / 500 s),
+    ``within_10_percent`` (of 500 s).
+    """
+    reached = np.asarray(result.reached)
+    ts = result.config.nmpc.ts
+    mission = float(reached[-1] * ts) if np.all(reached >= 0) else float("nan")
+    windows = avoidance_windows(result, merge_gap_s)
+    span = (float(windows[0, 0]), float(windows[-1, 1])) if len(windows) else (
+        float("nan"), float("nan"))
+    ratio = mission / PAPER_MISSION_TIME_S
+    return {"mission_time_s": mission, "first_target_s": first_target_time(result),
+            "avoidance": windows, "avoidance_span_s": span, "mission_ratio": ratio,
+            "within_10_percent": bool(abs(ratio - 1.0) <= 0.10)}
+
+
+def format_windows(windows: np.ndarray) -> str:
+    """``"41–58, 112–131 s"``: avoidance windows for a table (``"–"`` when none)."""
+    windows = np.asarray(windows, float).reshape(-1, 2)
+    if not len(windows):
+        return "–"
+    return ", ".join(f"{a:.0f}–{b:.0f}" for a, b in windows) + " s"
 
 
 def lq_feedback(config: Config | None = None) -> tuple[np.ndarray, np.ndarray]:

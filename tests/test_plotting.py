@@ -117,11 +117,16 @@ def test_thrust_figure_keeps_the_chattering_burst(result):
 
 
 def test_tracking_errors_are_against_the_active_target(result):
-    fig = P.plot_tracking_errors(result, max_points=10**6)
-    ex = fig.axes[0].get_lines()[0].get_ydata()
-    assert ex[100] == pytest.approx(abs(result.x[100, 0] - result.targets[0, 0]))
-    assert ex[5000] == pytest.approx(abs(result.x[5000, 0] - result.targets[1, 0]))
-    plt.close(fig)
+    # Signed by default, e_x = x_I − x_t as the paper's Figs. 5 and 7; |e| on request.
+    for signed, f in ((True, lambda v: v), (False, abs)):
+        fig = P.plot_tracking_errors(result, max_points=10**6, signed=signed)
+        ex = fig.axes[0].get_lines()[0].get_ydata()
+        assert ex[100] == pytest.approx(f(result.x[100, 0] - result.targets[0, 0]))
+        assert ex[5000] == pytest.approx(f(result.x[5000, 0] - result.targets[1, 0]))
+        ez = fig.axes[0].get_lines()[2].get_ydata()
+        assert ez[100] == pytest.approx(f(result.x[100, 2] - result.targets[0, 2]))
+        plt.close(fig)
+    assert result.x[100, 2] < result.targets[0, 2]  # so e_z < 0 there: the sign is tested
 
 
 def test_zoom_on_the_closest_approach(result):

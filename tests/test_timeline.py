@@ -229,3 +229,76 @@ def test_flown_lateral_decay_matches_the_predicted_time_constant(name):
     late = t >= fit_from
     slope = np.polyfit(t[late], np.log(lateral[late]), 1)[0]
     assert -1.0 / slope == pytest.approx(timeline.clock(cfg).tau_lateral_s, rel=0.10)
+
+
+# --- the clock of a flight ---------------------------------------------------------------------
+
+def _flight(visible, reached=(-1, -1), ts=0.01):
+    """The parts of a SimulationResult the clock helpers read."""
+    from types import SimpleNamespace
+
+    visible = np.asarray(visible, int)
+    return SimpleNamespace(t=np.arange(len(visible)) * ts, visible_points=visible,
+                           reached=np.asarray(reached), config=Config())
+
+
+def test_avoidance_windows_are_the_runs_of_steps_with_a_point_in_view():
+    seen = np.zeros(10_000, int)
+    seen[1000:1500] = 3   # 10-15 s
+    seen[1700:1800] = 1   # 17-18 s: 2 s after the first, one phase with a 5 s merge gap
+    seen[6000:6001] = 9   # 60 s, one step
+    windows = timeline.avoidance_windows(_flight(seen))
+    assert windows == pytest.approx(np.array([[10.0, 18.0], [60.0, 60.01]]))
+    apart = timeline.avoidance_windows(_flight(seen), merge_gap_s=0.0)
+    assert apart == pytest.approx(np.array([[10.0, 15.0], [17.0, 18.0], [60.0, 60.01]]))
+
+
+def test_avoidance_windows_at_the_ends_and_when_nothing_is_seen():
+    assert timeline.avoidance_windows(_flight(np.zeros(50))).shape == (0, 2)
+    windows = timeline.avoidance_windows(_flight(np.ones(50)))
+    assert windows == pytest.approx(np.array([[0.0, 0.5]]))
+    assert timeline.format_windows(np.zeros((0, 2))) == "–"
+    assert timeline.format_windows(np.array([[41.2, 58.0], [112.0, 131.4]])) == \
+        "41–58, 112–131 s"
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf")])
+def test_merge_gap_must_be_finite_and_non_negative(bad):
+    with pytest.raises(ValueError, match="merge_gap_s"):
+        timeline.avoidance_windows(_flight(np.ones(5)), merge_gap_s=bad)
+
+
+def test_flight_clock_against_the_paper():
+    seen = np.zeros(52_000, int)
+    seen[5000:12_000] = 5
+    clock_ = timeline.flight_clock(_flight(seen, reached=(20_000, 51_000)))
+    assert clock_["first_target_s"] == pytest.approx(200.0)
+    assert clock_["mission_time_s"] == pytest.approx(510.0)
+    assert clock_["avoidance_span_s"] == pytest.approx((50.0, 120.0))
+    assert clock_["mission_ratio"] == pytest.approx(1.02) and clock_["within_10_percent"]
+    late = timeline.flight_clock(_flight(seen, reached=(20_000, -1)))
+    assert np.isnan(late["mission_time_s"]) and not late["within_10_percent"]
+
+
+def test_timeline_study_flies_each_candidate_on_the_paper_mission():
+    study = timeline.timeline_study(quick=True)
+    assert [dict(s.labels)["candidate"] for s in study.specs] == list(timeline.CANDIDATES)
+    for spec in study.specs:
+        sim = spec.config.simulation
+        assert (sim.scenario, sim.kind, spec.max_steps) == ("paper", "mission",
+                                                           timeline.QUICK_STEPS)
+        assert spec.config.distance.metric == "smooth"
+    by_label = {dict(s.labels)["candidate"]: s.config.nmpc for s in study.specs}
+    assert by_label["printed"] == Config().nmpc
+    assert by_label["N = 43"].horizon == 43
+    assert by_label["h = 0.0118 s"].prediction_step == pytest.approx(0.0118)
+    # The printed run shares its cache folder with `reproduce`'s smooth run.
+    from paper_repro.reproduce import run_specs
+
+    full = timeline.timeline_study(labels=["printed"]).specs[0]
+    assert full.directory() == run_specs()[0].directory()
+
+
+def test_unknown_candidate_is_named():
+    with pytest.raises(ValueError, match="label"):
+        timeline.candidate_config("N = 99")

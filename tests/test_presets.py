@@ -1,0 +1,73 @@
+"""Named set-ups (paper_repro.presets) and how the commands take them."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from paper_repro import cli, paths, presets, reproduce
+from paper_repro.config import Config
+
+
+def test_the_default_preset_is_the_printed_configuration():
+    assert presets.DEFAULT == "paper"
+    assert presets.preset() == Config()
+    assert presets.preset("paper") == Config()
+
+
+def test_paper_timeline_changes_only_the_horizon():
+    printed, timed = Config(), presets.preset("paper-timeline")
+    assert timed.nmpc.horizon == 43 != printed.nmpc.horizon
+    assert dataclasses.replace(timed, nmpc=dataclasses.replace(
+        timed.nmpc, horizon=printed.nmpc.horizon)) == printed
+
+
+def test_a_preset_keeps_the_other_options_of_its_base():
+    base = dataclasses.replace(Config(), distance=dataclasses.replace(
+        Config().distance, metric="euclidean"))
+    cfg = presets.preset("paper-timeline", base=base)
+    assert cfg.distance.metric == "euclidean" and cfg.nmpc.horizon == 43
+
+
+@pytest.mark.parametrize("bad", ["nope", "", None, "Paper"])
+def test_unknown_preset_names_the_accepted_ones(bad):
+    with pytest.raises(ValueError, match="preset must be one of .*paper-timeline"):
+        presets.preset(bad)
+
+
+@pytest.mark.parametrize("command", [["run", "--out", "{tmp}"], ["reproduce"]])
+def test_commands_reject_an_unknown_preset_before_flying(command, tmp_path, capsys):
+    argv = [a.format(tmp=tmp_path) for a in command] + ["--preset", "nope"]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert "preset must be one of" in err and "paper-timeline" in err
+
+
+def test_reproduce_writes_a_preset_into_its_own_folder(tmp_path, monkeypatch):
+    seen = {}
+
+    def fake_execute(notebook, output, parameters=None):
+        seen.setdefault("figures", parameters["figures_dir"])
+        seen.setdefault("executed", str(output))
+        raise _Stop
+
+    monkeypatch.setattr(reproduce, "execute_notebook", fake_execute)
+    with pytest.raises(_Stop):
+        reproduce.reproduce(notebooks=["07_distance_tutorial"], preset="paper-timeline",
+                            log=lambda line: None)
+    expected = paths.figures_dir() / "presets" / "paper-timeline"
+    assert seen["figures"] == str(expected)
+    assert "presets/paper-timeline" in seen["executed"]
+
+
+def test_the_preset_enters_the_runs_of_reproduce():
+    cfg = presets.preset("paper-timeline")
+    specs = reproduce.run_specs(config=cfg)
+    assert all(s.config.nmpc.horizon == 43 for s in specs)
+    assert {s.directory() for s in specs}.isdisjoint(
+        {s.directory() for s in reproduce.run_specs()})
+
+
+class _Stop(Exception):
+    """Ends a reproduce call once its folders are known (nothing is flown or drawn)."""
