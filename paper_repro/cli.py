@@ -1,6 +1,7 @@
 """Command line: ``python -m paper_repro {run,scene,reproduce} ...``.
 
     python -m paper_repro run --scenario encounter --metric smooth --max-steps 500 --out results/x
+    python -m paper_repro run --scenario random --seed 3 --kind passage --out results/passage
     python -m paper_repro scene --scenario paper
     python -m paper_repro reproduce [--quick]
     python -m paper_repro study monte_carlo [--quick] [--workers N] [--scheduler ADDRESS]
@@ -47,7 +48,13 @@ def _main(argv: list[str] | None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
 
     run = sub.add_parser("run", help="fly one closed-loop mission and save its result")
-    run.add_argument("--scenario", choices=("paper", "encounter"), default="paper")
+    run.add_argument("--scenario", choices=("paper", "encounter", "random"), default="paper")
+    run.add_argument("--seed", type=_reproduce.non_negative_int, default=None,
+                     help="scene seed (Halton clouds; the layout of a random scene); default "
+                          "the config's")
+    run.add_argument("--kind", choices=("mission", "passage"), default="mission",
+                     help="mission: reach every target; passage: end 2 m past a random "
+                          "scene's obstacle field")
     run.add_argument("--metric", choices=("smooth", "euclidean"), default="smooth")
     run.add_argument("--solver", choices=("rti", "reference"), default="rti",
                      help="rti: Gauss-Newton real-time iteration (default); reference: IPOPT, "
@@ -64,7 +71,9 @@ def _main(argv: list[str] | None) -> int:
                           "parameters) or 'paper-timeline' (the paper's clock)")
 
     scene = sub.add_parser("scene", help="print a scene and a distance table")
-    scene.add_argument("--scenario", choices=("paper", "encounter"), default="paper")
+    scene.add_argument("--scenario", choices=("paper", "encounter", "random"), default="paper")
+    scene.add_argument("--seed", type=_reproduce.non_negative_int, default=None,
+                       help="scene seed (default: the config's)")
 
     reproduce = sub.add_parser(
         "reproduce", help="simulate what is missing, run every notebook, write figures/",
@@ -115,7 +124,9 @@ def _run(args) -> int:
         cfg,
         distance=dataclasses.replace(cfg.distance, metric=args.metric),
         nmpc=dataclasses.replace(cfg.nmpc, solver=args.solver, qp_solver=args.qp_solver),
-        simulation=dataclasses.replace(cfg.simulation, scenario=args.scenario),
+        simulation=dataclasses.replace(
+            cfg.simulation, scenario=args.scenario, kind=args.kind,
+            seed=cfg.simulation.seed if args.seed is None else args.seed),
     )
     result = simulate(cfg, max_steps=args.max_steps,
                       progress=False if args.no_progress else None)
@@ -146,7 +157,8 @@ def _scene(args) -> int:
     from .scene import make_scene
 
     cfg = Config()
-    scene = make_scene(args.scenario, cfg.simulation.seed)
+    scene = make_scene(args.scenario,
+                       cfg.simulation.seed if args.seed is None else args.seed)
     eta, sigma = cfg.distance.eta, cfg.distance.sigma
     print(f"scene {scene.name!r}: start {list(scene.start)}, targets "
           f"{[list(t) for t in scene.targets]}")

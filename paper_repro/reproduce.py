@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -284,7 +285,9 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
             continue
         log(f"{step}: flying up to {spec.max_steps} steps ...")
         t0 = time.perf_counter()
-        out, _ = ensure_result(spec, results_dir, force=True, progress=progress)
+        # Not on a terminal (a log, CI): plain lines every 30 s instead of a silent minute.
+        lines = log if progress is None and not sys.stderr.isatty() else progress
+        out, _ = ensure_result(spec, results_dir, force=True, progress=lines)
         timings[spec.name] = time.perf_counter() - t0
         simulated.append(spec.name)
         result_dirs[spec.config.distance.metric] = out
@@ -399,6 +402,17 @@ def _show(path) -> str:
         return str(p.relative_to(paths.repo_root()))
     except ValueError:
         return str(p)
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type: an integer >= 0, with a message naming the accepted range."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {value}")
+    return value
 
 
 def positive_int(text: str) -> int:

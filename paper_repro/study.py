@@ -335,7 +335,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("name", choices=sorted(STUDIES), help="which study")
     parser.add_argument("--quick", action="store_true",
                         help="a few short runs (what CI executes); output under figures/quick/")
-    parser.add_argument("--workers", type=_non_negative_int, default=None,
+    from .reproduce import non_negative_int
+
+    parser.add_argument("--workers", type=non_negative_int, default=None,
                         help="worker processes of the embedded Dask cluster (default: one per "
                              "core; 0: no Dask, in this process)")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -384,18 +386,6 @@ def study_dir(name: str, quick: bool = False) -> Path:
 
 
 # --- helpers --------------------------------------------------------------------------------
-
-def _non_negative_int(text: str) -> int:
-    import argparse
-
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {value}")
-    return value
-
 
 def _run_on_dask(specs, runs_dir: str, force: bool, done, workers, scheduler, client,
                  log) -> None:
