@@ -224,11 +224,12 @@ STUDIES: dict[str, Callable[..., Study]] = {"monte_carlo": monte_carlo, "eta_swe
 """The studies ``python -m paper_repro study NAME`` knows."""
 
 
-def make_study(name: str, quick: bool = False) -> Study:
-    """The study of :data:`STUDIES` called ``name``."""
+def make_study(name: str, quick: bool = False, base: Config | None = None) -> Study:
+    """The study of :data:`STUDIES` called ``name``, its runs built on ``base`` (default
+    :class:`Config`, e.g. a :func:`paper_repro.presets.preset`)."""
     if name not in STUDIES:
         raise ValueError(f"study must be one of {sorted(STUDIES)}, got {name!r}")
-    return STUDIES[name](quick=quick)
+    return STUDIES[name](quick=quick, base=base)
 
 
 # --- running a study ------------------------------------------------------------------------
@@ -350,13 +351,21 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-figures", action="store_true",
                         help="only the table: do not execute the study's notebook")
     parser.add_argument("--no-progress", action="store_true", help="plain progress lines")
+    parser.add_argument("--preset", default="paper", metavar="NAME",
+                        help="named set-up the runs start from (paper_repro.presets; default "
+                             "'paper', the printed parameters); another preset's output goes "
+                             "to figures/presets/NAME/studies/")
 
 
 def main(args) -> int:
     """Run ``python -m paper_repro study``: the study (cached runs are only loaded), its table,
     then its notebook, which draws the figures from the saved table."""
-    study = make_study(args.name, quick=args.quick)
+    from .presets import DEFAULT, preset
+
+    study = make_study(args.name, quick=args.quick, base=preset(args.preset))
     out = Path(args.out) if args.out else study_dir(args.name, args.quick)
+    if args.out is None and args.preset != DEFAULT:
+        out = paths.figures_dir(args.quick) / "presets" / args.preset / "studies" / args.name
     result = run_study(study, out=out, workers=args.workers, scheduler=args.scheduler,
                        force=args.force, runs_dir=paths.results_dir() / "runs",
                        progress=False if args.no_progress else None,

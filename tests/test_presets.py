@@ -36,7 +36,8 @@ def test_unknown_preset_names_the_accepted_ones(bad):
         presets.preset(bad)
 
 
-@pytest.mark.parametrize("command", [["run", "--out", "{tmp}"], ["reproduce"]])
+@pytest.mark.parametrize("command", [["run", "--out", "{tmp}"], ["reproduce"],
+                                     ["study", "monte_carlo", "--quick"]])
 def test_commands_reject_an_unknown_preset_before_flying(command, tmp_path, capsys):
     argv = [a.format(tmp=tmp_path) for a in command] + ["--preset", "nope"]
     assert cli.main(argv) == 2
@@ -67,6 +68,17 @@ def test_the_preset_enters_the_runs_of_reproduce():
     assert all(s.config.nmpc.horizon == 43 for s in specs)
     assert {s.directory() for s in specs}.isdisjoint(
         {s.directory() for s in reproduce.run_specs()})
+
+
+@pytest.mark.parametrize("name", ["monte_carlo", "eta_sweep", "sensor_noise"])
+def test_a_study_starts_from_the_preset(name):
+    from paper_repro.study import make_study
+
+    printed = make_study(name, quick=True)
+    timed = make_study(name, quick=True, base=presets.preset("paper-timeline"))
+    assert all(s.config.nmpc.horizon == 43 for s in timed.specs)
+    assert [s.name for s in timed.specs] == [s.name for s in printed.specs]
+    assert {s.key for s in timed.specs}.isdisjoint({s.key for s in printed.specs})
 
 
 class _Stop(Exception):
