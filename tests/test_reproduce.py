@@ -68,7 +68,8 @@ def test_run_key_follows_the_scene_geometry(monkeypatch):
     assert runs.RunSpec(spec.name, reseeded, 1000).key != spec.key
     h = spec.key
     monkeypatch.setattr(runs, "run_key", lambda c, m, fp: fp)
-    assert spec.key == spec.scene().fingerprint() != h
+    fresh = runs.RunSpec(spec.name, spec.config, spec.max_steps)  # keys are computed once
+    assert fresh.key == spec.scene().fingerprint() != h
 
 
 def test_run_specs_fly_the_paper_mission_for_both_metrics():
@@ -200,6 +201,7 @@ def test_cli_solver_option_reaches_the_runs(tmp_path, monkeypatch, fake_simulati
     assert list(table["solver"]) == ["reference", "reference"]
 
 
-def test_cli_rejects_unknown_notebook_names():
-    with pytest.raises(SystemExit):
-        main(["reproduce", "--notebooks", "99_nothing"])
+def test_cli_rejects_unknown_notebook_names(capsys):
+    assert main(["reproduce", "--notebooks", "99_nothing"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error:") and "99_nothing" in err and "\n" not in err
