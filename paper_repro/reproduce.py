@@ -291,7 +291,7 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
         timings[spec.name] = time.perf_counter() - t0
         simulated.append(spec.name)
         result_dirs[spec.config.distance.metric] = out
-        log(f"{step}: done in {_duration(timings[spec.name])} -> {_show(out)}")
+        log(f"{step}: done in {duration(timings[spec.name])} -> {_show(out)}")
 
     outputs, ran = [], []
     for i, nb in enumerate(selected, len(todo) + 1):
@@ -309,7 +309,7 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
             raise RuntimeError(f"notebook {nb.name} did not write {missing} into {figures}")
         outputs += [figures / f for f in nb.outputs]
         ran.append(nb.name)
-        log(f"{step}: done in {_duration(timings[nb.name])}")
+        log(f"{step}: done in {duration(timings[nb.name])}")
 
     for metric, directory in result_dirs.items():
         with np.load(Path(directory) / "result.npz") as z:
@@ -320,7 +320,7 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
                 "show the partial mission")
 
     elapsed = time.perf_counter() - start
-    log(f"done in {_duration(elapsed)}: {len(outputs)} file(s) in {_show(figures)}, executed "
+    log(f"done in {duration(elapsed)}: {len(outputs)} file(s) in {_show(figures)}, executed "
         f"notebooks in {_show(executed)}")
     return ReproduceReport(result_dirs, simulated, ran, figures, outputs, timings, elapsed)
 
@@ -385,7 +385,8 @@ def _has_parameters_cell(notebook: Path) -> bool:
     return any("parameters" in c.get("metadata", {}).get("tags", []) for c in data["cells"])
 
 
-def _duration(seconds: float) -> str:
+def duration(seconds: float) -> str:
+    """``12.3 s``, ``4 min 05 s``, ``1 h 02 min``."""
     if seconds < 60:
         return f"{seconds:.1f} s"
     minutes, sec = divmod(round(seconds), 60)
@@ -404,23 +405,21 @@ def _show(path) -> str:
         return str(p)
 
 
-def non_negative_int(text: str) -> int:
-    """argparse type: an integer >= 0, with a message naming the accepted range."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {value}")
-    return value
+def int_at_least(low: int):
+    """An argparse type: an integer >= ``low``, with a message naming the accepted range."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"must be an integer >= {low}, got {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {value}")
+        return value
+
+    return parse
 
 
-def positive_int(text: str) -> int:
-    """argparse type: an integer >= 1, with a message naming the accepted range."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {value}")
-    return value
+positive_int = int_at_least(1)
+non_negative_int = int_at_least(0)

@@ -42,6 +42,7 @@ from pathlib import Path
 
 from . import paths
 from .config import Config, SensorParams, SimulationParams
+from .reproduce import duration
 from .runs import RunSpec, ensure_result
 
 PASSAGE_STEPS = 15_000
@@ -295,7 +296,7 @@ def run_study(study: Study, out=None, workers: int | None = None, scheduler: str
     _save(study, table, out, wall)
     failed = int((table["status"] == "failed").sum())
     log(f"study {study.name}: {len(table)} runs ({int(table['simulated'].sum())} flown, "
-        f"{failed} failed) in {_duration(wall)} -> {out}")
+        f"{failed} failed) in {duration(wall)} -> {out}")
     return StudyResult(study, table, out, wall)
 
 
@@ -379,7 +380,7 @@ def main(args) -> int:
                          paths.executed_dir(args.quick) / f"{notebook}.ipynb",
                          {"study_dir": str(result.directory)})
         print(f"notebook {notebook}: figures in {result.directory} "
-              f"({_duration(time.perf_counter() - t0)})", flush=True)
+              f"({duration(time.perf_counter() - t0)})", flush=True)
     return 0
 
 
@@ -532,7 +533,7 @@ class _Progress:
             elapsed = now - self.start
             eta = elapsed / self.done * (self.total - self.done)
             self.log(f"study {self.name}: {self.done}/{self.total} runs, {self.failed} failed, "
-                     f"{_duration(elapsed)} elapsed, ETA {_duration(eta)}")
+                     f"{duration(elapsed)} elapsed, ETA {duration(eta)}")
 
     def close(self) -> None:
         if self.bar is not None:
@@ -542,14 +543,4 @@ class _Progress:
 def _require_count(name: str, n) -> None:
     if not (isinstance(n, int) and n >= 1):
         raise ValueError(f"{name} must be an integer >= 1, got {n!r}")
-
-
-def _duration(seconds: float) -> str:
-    if seconds < 60:
-        return f"{seconds:.0f} s"
-    minutes, sec = divmod(round(seconds), 60)
-    if minutes < 60:
-        return f"{minutes} min {sec:02d} s"
-    hours, minutes = divmod(minutes, 60)
-    return f"{hours} h {minutes:02d} min"
 

@@ -1178,6 +1178,6 @@ def _write_json(path: Path, data: dict) -> None:
 
 
 def _duration(seconds: float) -> str:
-    from .study import _duration as d
+    from .reproduce import duration
 
-    return d(seconds)
+    return duration(seconds)
