@@ -630,7 +630,8 @@ def best_setups(frame, objectives: Sequence[str] = DEFAULT_OBJECTIVES,
             "best_time": front.sort_values([speed, chat, "number"]).iloc[0]}
     out = {"printed": printed_params(base, names)}
     for k, row in pick.items():
-        out[k] = {n: float(row[n]) for n in names}
+        # Rounded as the trial's flights were (:func:`suggest`): the same configuration.
+        out[k] = {n: round(float(row[n]), 10) for n in names}
         out[k]["trial"] = int(row["number"])
     return out
 
