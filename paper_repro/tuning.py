@@ -917,6 +917,8 @@ def add_arguments(parser) -> None:
 def main(args) -> int:
     """``python -m paper_repro tune``: the study (resumed if stored), the held-out evaluation,
     then notebook ``12_tuning``, which draws everything from the saved study and table."""
+    from .reproduce import duration
+
     quick = args.quick
     trials = args.trials or (QUICK["trials"] if quick else DEFAULT_TRIALS)
     out = Path(args.out) if args.out else tuning_dir(quick)
@@ -940,7 +942,7 @@ def main(args) -> int:
         if heldout:
             run_heldout(res, heldout, client=client, log=log)
     print(f"tune: {len(_finished(res.study))} trials, {res.flown_trials} run now, in "
-          f"{_duration(time.perf_counter() - t0)} -> {out}", flush=True)
+          f"{duration(time.perf_counter() - t0)} -> {out}", flush=True)
     if not args.no_figures:
         from .reproduce import execute_notebook, notebook_path
 
@@ -1176,9 +1178,3 @@ def _write_json(path: Path, data: dict) -> None:
     tmp = path.with_name(f".{path.name}.{os.getpid()}")
     tmp.write_text(json.dumps(data, indent=1, default=str) + "\n")
     os.replace(tmp, path)
-
-
-def _duration(seconds: float) -> str:
-    from .reproduce import duration
-
-    return duration(seconds)
