@@ -200,10 +200,10 @@ spurious returns per scan on average; seeded per scene."""
 def sensor_noise(quick: bool = False, scenes: int | None = None,
                  base: Config | None = None) -> Study:
     """Smooth against Euclidean with a perfect and a noisy LiDAR (:data:`NOISY_LIDAR`), on
-    ``scenes`` random passages (10; 2 with ``quick``; the perfect runs are those of
+    ``scenes`` random passages (8; 2 with ``quick``; the perfect runs are those of
     :func:`monte_carlo`). The smoothed distance averages many points where the Euclidean one
     follows the nearest, so noise should widen the gap."""
-    n = scenes if scenes is not None else (2 if quick else 10)
+    n = scenes if scenes is not None else (2 if quick else 8)
     _require_count("scenes", n)
     base = base or Config()
     steps = QUICK_STEPS if quick else PASSAGE_STEPS

@@ -181,7 +181,7 @@ def test_the_noise_study_shares_its_perfect_runs_and_perturbs_the_others():
     noise, mc = S.sensor_noise(), {s.name: s.key for s in S.monte_carlo().specs}
     perfect = [s for s in noise.specs if dict(s.labels)["sensor"] == "perfect"]
     noisy = [s for s in noise.specs if dict(s.labels)["sensor"] == "noisy"]
-    assert len(perfect) == len(noisy) == 20
+    assert len(perfect) == len(noisy) == 16
     assert all(mc.get(s.name) == s.key for s in perfect)  # the same flights, one cache folder
     assert not any(s.name in mc for s in noisy)
     # The noisy sensor changes what the controller sees, reproducibly per scene.
