@@ -226,12 +226,14 @@ STUDIES: dict[str, Callable[..., Study]] = {"monte_carlo": monte_carlo, "eta_swe
 """The studies ``python -m paper_repro study NAME`` knows."""
 
 
-def make_study(name: str, quick: bool = False, base: Config | None = None) -> Study:
+def make_study(name: str, quick: bool = False, base: Config | None = None,
+               scenes: int | None = None) -> Study:
     """The study of :data:`STUDIES` called ``name``, its runs built on ``base`` (default
-    :class:`Config`, e.g. a :func:`paper_repro.presets.preset`)."""
+    :class:`Config`, e.g. a :func:`paper_repro.presets.preset`), over ``scenes`` random
+    passages (default: the study's own)."""
     if name not in STUDIES:
         raise ValueError(f"study must be one of {sorted(STUDIES)}, got {name!r}")
-    return STUDIES[name](quick=quick, base=base)
+    return STUDIES[name](quick=quick, base=base, scenes=scenes)
 
 
 # --- running a study ------------------------------------------------------------------------
@@ -338,7 +340,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("name", choices=sorted(STUDIES), help="which study")
     parser.add_argument("--quick", action="store_true",
                         help="a few short runs (what CI executes); output under figures/quick/")
-    from .reproduce import non_negative_int
+    from .reproduce import non_negative_int, positive_int
 
     parser.add_argument("--workers", type=non_negative_int, default=None,
                         help="worker processes of the embedded Dask cluster (default: one per "
@@ -349,6 +351,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", default=None,
                         help="where the table, study.json and the figures go (default: "
                              "figures/studies/NAME, or figures/quick/studies/NAME)")
+    parser.add_argument("--scenes", type=positive_int, default=None,
+                        help="random passages (scene seeds 0..N-1; default: the study's own, "
+                             "100 for monte_carlo, 20 for eta_sweep, 8 for sensor_noise)")
     parser.add_argument("--force", action="store_true", help="fly every run again")
     parser.add_argument("--no-figures", action="store_true",
                         help="only the table: do not execute the study's notebook")
@@ -364,7 +369,8 @@ def main(args) -> int:
     then its notebook, which draws the figures from the saved table."""
     from .presets import DEFAULT, preset
 
-    study = make_study(args.name, quick=args.quick, base=preset(args.preset))
+    study = make_study(args.name, quick=args.quick, base=preset(args.preset),
+                       scenes=args.scenes)
     out = Path(args.out) if args.out else study_dir(args.name, args.quick)
     if args.out is None and args.preset != DEFAULT:
         out = paths.figures_dir(args.quick) / "presets" / args.preset / "studies" / args.name
