@@ -582,7 +582,7 @@ def plot_sweep(settings, x: str, fixed: dict, columns=(
         ("min_clearance_m", "min clearance, m", False),
         ("time_to_complete_s", "passage time, s", False),
         ("stalled_rate", "stall rate", False),
-        ("solve_p99_ms", "solve time p99, ms", False))):
+        ("solve_median_ms", "solve time, median per run, ms", False))):
     """Medians over scenes (bands: their 95 % intervals) of the smooth runs against ``x``
     (``"eta"`` or ``"sigma"``) with the other parameter held at ``fixed``; the Euclidean
     baseline as a dashed line (:func:`paper_repro.analysis.by_setting`)."""
@@ -608,6 +608,8 @@ def plot_sweep(settings, x: str, fixed: dict, columns=(
             ax.text(0.5, 0.5, "no data", transform=ax.transAxes, ha="center", color="0.5")
         else:
             ax.set_xscale("log")
+            ax.set_xticks(xs, [f"{v:g}" for v in xs])  # the swept values, not log decades
+            ax.minorticks_off()
             if log and np.nanmin(values) > 0:
                 ax.set_yscale("log")
         ax.set_xlabel(f"{'η' if x == 'eta' else 'σ'}, m  ("
