@@ -15,6 +15,7 @@ import pytest
 
 from paper_repro import Config, NMPCParams, random_scenes, runs
 from paper_repro import study as S
+from paper_repro.nmpc import make_controller
 from paper_repro.simulation import SimulationResult, simulate
 
 TINY = Config(nmpc=NMPCParams(region_slots=1, points_per_region=64))
@@ -178,15 +179,17 @@ def test_progress_lines_when_not_a_terminal(tmp_path):
 
 
 def test_the_noise_study_shares_its_perfect_runs_and_perturbs_the_others():
-    noise, mc = S.sensor_noise(), {s.name: s.key for s in S.monte_carlo().specs}
+    noise = S.sensor_noise()
+    mc = {s.name: s.key for s in S.monte_carlo(scenes=8).specs}  # the same 8 scenes
     perfect = [s for s in noise.specs if dict(s.labels)["sensor"] == "perfect"]
     noisy = [s for s in noise.specs if dict(s.labels)["sensor"] == "noisy"]
     assert len(perfect) == len(noisy) == 16
     assert all(mc.get(s.name) == s.key for s in perfect)  # the same flights, one cache folder
     assert not any(s.name in mc for s in noisy)
     # The noisy sensor changes what the controller sees, reproducibly per scene.
-    spec = dataclasses.replace(noisy[0], max_steps=40)
-    a, b = simulate(spec.config, progress=False), simulate(spec.config, progress=False)
-    clean = simulate(perfect[0].config, max_steps=40, progress=False)
+    cfg = noisy[0].config
+    ctl = make_controller(cfg)  # the sensor is not the controller's: one serves all
+    a, b = (simulate(cfg, ctl, max_steps=40, progress=False) for _ in range(2))
+    clean = simulate(perfect[0].config, ctl, max_steps=40, progress=False)
     np.testing.assert_array_equal(a.x, b.x)
     assert not np.array_equal(a.visible_points, clean.visible_points)
