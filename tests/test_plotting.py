@@ -87,6 +87,14 @@ def test_stride_decimation_keeps_the_ends():
     assert np.array_equal(P.stride_indices(10, 5000), np.arange(10))
 
 
+def _drawn_steps(result, line):
+    """The steps a time-series line was drawn at (its x data are times of the run)."""
+    t = np.asarray(line.get_xdata(), float)
+    k = np.rint(t / result.config.nmpc.ts).astype(int)
+    assert np.array_equal(result.t[k], t)  # every point is a logged instant, none invented
+    return k
+
+
 def test_paper_figures_draw_decimated_lines(result, scene):
     figs = {
         "3d": P.plot_flight_3d(result, scene, max_points=500),
@@ -98,14 +106,61 @@ def test_paper_figures_draw_decimated_lines(result, scene):
         "solve": P.plot_solve_times([result], max_points=500),
     }
     assert len(figs["thrusts"].axes) == 4 and len(figs["states"].axes) == 3
+    # Lines per axes: f_i, u_a,i and the target switch; e_x, e_y, e_z, the zero line and the
+    # switch; x_I, x_a, x_t; trajectory, start and targets in a projection; one CDF.
+    per_axes = {"3d": [1], "xz": [3], "xy": [3], "thrusts": [3] * 4, "errors": [5],
+                "states": [3] * 3, "solve": [1]}
     for name, fig in figs.items():
+        assert [len(ax.get_lines()) for ax in fig.axes] == per_axes[name], name
         for ax in fig.axes:
             for line in ax.get_lines():
                 assert len(line.get_xdata()) <= 502, name
+
+    # What is drawn is the run's data, decimated, first and last step kept.
+    pos = result.x[:, :3]
+    traj = np.column_stack(figs["3d"].axes[0].get_lines()[0].get_data_3d())
+    assert np.array_equal(traj, pos[P.stride_indices(len(pos), 500)])
+    assert np.array_equal(traj[0], pos[0]) and np.array_equal(traj[-1], pos[-1])
+    for plane, (i, j) in (("xz", (0, 2)), ("xy", (0, 1))):
+        ax = figs[plane].axes[0]
+        line = ax.get_lines()[0]
+        assert np.array_equal(line.get_xdata(), pos[P.stride_indices(len(pos), 500), i])
+        assert np.array_equal(line.get_ydata(), pos[P.stride_indices(len(pos), 500), j])
+        assert (ax.get_xlabel(), ax.get_ylabel()) == (P.AXIS_LABELS[i], P.AXIS_LABELS[j])
+        lo, hi = ax.get_xlim(), ax.get_ylim()  # the workspace holds the whole flight
+        assert lo[0] <= pos[:, i].min() and pos[:, i].max() <= lo[1]
+        assert hi[0] <= pos[:, j].min() and pos[:, j].max() <= hi[1]
+    for i, ax in enumerate(figs["thrusts"].axes):
+        f_i, u_a, switch = ax.get_lines()
+        assert np.array_equal(switch.get_xdata(), [40.0, 40.0])  # target 1 reached at step 4,000
+        k = _drawn_steps(result, f_i)
+        assert np.array_equal(f_i.get_ydata(), result.u[k, i]) and k[0] == 0
+        assert k[-1] == len(result.u) - 1
+        assert np.array_equal(u_a.get_ydata(), result.u_a[_drawn_steps(result, u_a), i])
+        assert ax.get_ylabel() == f"$f_{i + 1}$ [N]"
+    assert figs["thrusts"].axes[-1].get_xlabel() == "t [s]"
+    error = result.x[:-1, :3] - result.targets[result.target_index]
+    for i, line in enumerate(figs["errors"].axes[0].get_lines()[:3]):
+        assert np.allclose(line.get_ydata(), error[_drawn_steps(result, line), i])
+    assert figs["errors"].axes[0].get_ylabel() == "error [m]"
+    for i, ax in enumerate(figs["states"].axes):
+        x_i, x_a, x_t = ax.get_lines()
+        assert np.array_equal(x_i.get_ydata(), result.x[_drawn_steps(result, x_i), i])
+        assert np.array_equal(x_a.get_ydata(), result.x_a[_drawn_steps(result, x_a), i])
+        k = _drawn_steps(result, x_t)
+        assert np.array_equal(x_t.get_ydata(), result.targets[result.target_index[k], i])
+        assert ax.get_ylabel() == f"{'xyz'[i]} [m]"
+    cdf = figs["solve"].axes[0].get_lines()[0]
+    assert np.allclose(cdf.get_xdata(), 80.0) and cdf.get_ydata()[-1] == 1.0
+    assert np.all(np.diff(cdf.get_ydata()) > 0)
+    for fig in figs.values():
         plt.close(fig)
-    # The spectrum has one point per Welch bin: 512 above 0 Hz.
+    # The spectrum has one point per Welch bin: 512 above 0 Hz; the cut-off is marked.
     fig = P.plot_input_spectrum([result])
-    assert len(fig.axes[0].get_lines()[0].get_xdata()) == 512
+    spectrum, cutoff = fig.axes[0].get_lines()
+    assert len(spectrum.get_xdata()) == 512 and np.all(spectrum.get_ydata() > 0)
+    assert np.array_equal(cutoff.get_xdata(), [5.0, 5.0])
+    assert fig.axes[0].get_xlabel() == "frequency [Hz]"
     plt.close(fig)
 
 
@@ -165,11 +220,20 @@ def test_lidar_instants_pick_the_closest_approach(result, scene):
 
 def test_a_saved_run_redraws_against_its_own_clouds(result, tmp_path):
     """The scene travels with the result: after save/load the figure's clouds are the
-    flown ones, point for point, even when the scene is edited afterwards."""
+    flown ones, point for point, and the redrawn figure is the same picture, byte for byte."""
     result.save(tmp_path / "run")
     loaded = type(result).load(tmp_path / "run")
     assert loaded.scene.fingerprint() == result.scene.fingerprint()
     assert all(np.array_equal(a, b) for a, b in zip(loaded.scene.clouds, result.scene.clouds))
+    fig = P.plot_projection(loaded, loaded.scene, plane="xy", max_points=200)
+    drawn = [c.get_offsets() for c in fig.axes[0].collections]
+    assert len(drawn) == len(result.scene.clouds)
+    assert all(np.array_equal(d, c[:, :2]) for d, c in zip(drawn, result.scene.clouds))
+    assert np.array_equal(fig.axes[0].get_lines()[0].get_xydata()[-1], result.x[-1, :2])
+    before = P.plot_projection(result, result.scene, plane="xy", max_points=200)
+    pngs = [P.save_figure(f, name, tmp_path, formats=("png",), dpi=40, close=True)[0]
+            for f, name in ((before, "before"), (fig, "after"))]
+    assert pngs[0].read_bytes() == pngs[1].read_bytes()
 
 
 def test_slice_through_the_middle_of_a_cloud():
@@ -179,14 +243,54 @@ def test_slice_through_the_middle_of_a_cloud():
 
 
 def test_tutorial_figures_and_bound(scene):
+    from matplotlib.contour import ContourSet
+    from matplotlib.quiver import Quiver
+
     cloud = scene.clouds[1]
     z, extent = P.slice_through(cloud)
-    for fig in (P.plot_distance_slice(cloud, z, extent, 0.3, 0.8, n=30),
-                P.plot_eta_sigma(cloud, z, extent, n=25),
-                P.plot_gradient_field(cloud, z, extent, 0.3, 0.8, n=8),
-                P.plot_half_squared_limit(cloud, z, extent, etas=[0.05, 0.3], n=15)):
-        assert fig.axes
-        plt.close(fig)
+
+    fig = P.plot_distance_slice(cloud, z, extent, 0.3, 0.8, n=30)
+    smooth_ax, euclid_ax, colorbar = fig.axes
+    assert colorbar.get_ylabel() == "m²" and "η = 0.3 m" in smooth_ax.get_title()
+    levels = []
+    for ax in (smooth_ax, euclid_ax):
+        assert ax.get_xlim() == pytest.approx(extent[:2])
+        assert ax.get_ylim() == pytest.approx(extent[2:])
+        assert (ax.get_xlabel(), ax.get_ylabel()) == ("x [m]", "y [m]")
+        filled, lines = [c for c in ax.collections if isinstance(c, ContourSet)]
+        assert list(lines.levels) == [0.125, 0.5, 1.0, 2.0, 4.0, 8.0]  # the same in both
+        levels.append(filled.levels[-1] - 1)  # the largest value on the slice
+    assert levels[0] >= levels[1]  # D >= ½d² everywhere, so also its maximum
+    plt.close(fig)
+
+    fig = P.plot_eta_sigma(cloud, z, extent, n=25)
+    assert [ax.get_title() for ax in fig.axes] == [
+        "η = 0.1 m, σ = 0.8 m", "η = 0.3 m, σ = 0.8 m", "η = 0.6 m, σ = 0.8 m",
+        "η = 0.3 m, σ = 0.8 m", "η = 0.3 m, σ = 2 m", "η = 0.3 m, σ = 100 m"]
+    plt.close(fig)
+
+    fig = P.plot_gradient_field(cloud, z, extent, 0.3, 0.8, n=8)
+    _, _, q = P.slice_grid(extent, z, 8)
+    nearest = cloud[np.argmin(((q[:, None] - cloud[None]) ** 2).sum(axis=2), axis=1)]
+    expected = (q - nearest)[:, :2] / np.linalg.norm((q - nearest)[:, :2], axis=1)[:, None]
+    for ax in fig.axes:
+        (arrows,) = [c for c in ax.collections if isinstance(c, Quiver)]
+        assert arrows.N == 64 and np.allclose(np.hypot(arrows.U, arrows.V), 1.0)
+        assert np.allclose(np.column_stack([arrows.X, arrows.Y]), q[:, :2])
+    euclid = [c for c in fig.axes[1].collections if isinstance(c, Quiver)][0]
+    assert np.allclose(np.column_stack([euclid.U, euclid.V]), expected)  # away from a*
+    plt.close(fig)
+
+    # The bound drawn holds: max gap <= eta² max ln(V/W_j) at every eta, and the gap >= 0.
+    fig = P.plot_half_squared_limit(cloud, z, extent, etas=[0.05, 0.3], n=15)
+    worst, median, bound = fig.axes[0].get_lines()
+    for line in (worst, median, bound):
+        assert list(line.get_xdata()) == [0.05, 0.3]
+    assert np.all(0 < median.get_ydata()) and np.all(median.get_ydata() <= worst.get_ydata())
+    assert np.all(worst.get_ydata() <= bound.get_ydata())
+    assert np.all(np.diff(worst.get_ydata()) > 0)  # vanishes as eta -> 0
+    assert fig.axes[0].get_xlabel() == "η [m]" and "[m²]" in fig.axes[0].get_ylabel()
+    plt.close(fig)
 
 
 def test_animation_writes_a_gif_with_the_requested_frames(tmp_path, result, scene):
@@ -195,6 +299,7 @@ def test_animation_writes_a_gif_with_the_requested_frames(tmp_path, result, scen
     path = P.animate_flight(result, scene, tmp_path / "flight.gif", frames=3, dpi=30)
     with Image.open(path) as im:
         assert im.format == "GIF" and im.n_frames == 3
+        assert im.size == (9 * 30, round(4.5 * 30))  # the 9 × 4.5 in figure at dpi 30
     with pytest.raises(ValueError, match="frames"):
         P.animate_flight(result, scene, tmp_path / "x.gif", frames=0)
 
