@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 from paper_repro import Config
-from paper_repro.nmpc import make_controller
+from paper_repro.controllers import make_controller
 from paper_repro.simulation import simulate
 
 VARIANTS = {  # name -> (solver, controller options)

@@ -40,8 +40,8 @@ import numpy as np  # noqa: E402
 
 from paper_repro import Config  # noqa: E402
 from paper_repro import simulation as sim_module  # noqa: E402
+from paper_repro.controllers import make_controller  # noqa: E402
 from paper_repro.model import plant_step  # noqa: E402
-from paper_repro.nmpc import make_controller  # noqa: E402
 from paper_repro.plant import Plant  # noqa: E402
 from paper_repro.simulation import simulate  # noqa: E402
 

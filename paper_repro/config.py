@@ -142,10 +142,13 @@ class NMPCParams:
         prediction then spans N·prediction_ts, and the terminal constraint x_N = x_a asks the
         UAV to be at rest at the artificial equilibrium after that time rather than N·T_s.
         See :mod:`paper_repro.timeline` for why this sets the mission's clock.
-    q, r, t : diagonals of Q (12), R (4), T (3), *paper*.
-    state_lower, state_upper : (12,) bounds of 𝒳, *paper*; position, Euler angles (rad),
-        velocities (m/s), Euler-angle rates (rad/s).
-    input_lower, input_upper : (4,) bounds of 𝒰 in N, *paper* 0 ≤ f_i ≤ 12.
+    q, r, t : diagonals of Q (12), R (4), T (3), *paper*. Another vehicle
+        (:class:`~paper_repro.vehicle.VehicleModel`) needs n_x, n_u and p entries; the
+        :class:`~paper_repro.ocp.OCP` checks them against its model.
+    state_lower, state_upper : (12,) bounds of the quadrotor's 𝒳, *paper*; position, Euler
+        angles (rad), velocities (m/s), Euler-angle rates (rad/s). Another vehicle carries its
+        own bounds.
+    input_lower, input_upper : (4,) bounds of the quadrotor's 𝒰 in N, *paper* 0 ≤ f_i ≤ 12.
     lam : λ ∈ (0, 1), *chosen* 0.99. The artificial equilibrium lies in λ(𝒳 × 𝒰),
         i.e. 25 cm inside the 25 m workspace walls; the relaxation only needs to keep
         (x_a, u_a) off the boundary (Limon et al. 2018), and the paper's targets sit at
@@ -190,9 +193,11 @@ class NMPCParams:
         _require_positive("ts", self.ts)
         if self.prediction_ts is not None:
             _require_positive("prediction_ts", self.prediction_ts)
-        for name, n in (("q", 12), ("r", 4), ("t", 3), ("state_lower", 12),
-                        ("state_upper", 12), ("input_lower", 4), ("input_upper", 4)):
+        for name, n in (("state_lower", 12), ("state_upper", 12), ("input_lower", 4),
+                        ("input_upper", 4)):
             _require_vector(name, getattr(self, name), n)
+        for name in ("q", "r", "t"):  # their length is the model's (checked by the OCP)
+            _require_vector(name, getattr(self, name), None)
         # Cross-field: 𝒳 and 𝒰 must be boxes with interior (lower < upper, per index), or
         # the first QP is infeasible and HPIPM fails without saying why.
         _require_ordered("state_lower", self.state_lower, "state_upper", self.state_upper)
@@ -216,18 +221,22 @@ class NMPCParams:
         return self.ts if self.prediction_ts is None else float(self.prediction_ts)
 
     def relaxed_bounds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """λ(𝒳 × 𝒰): the box shrunk by λ about its centre.
+        """λ(𝒳 × 𝒰) of the quadrotor's box (see :func:`relaxed_box`): x lower, x upper, u
+        lower, u upper."""
+        return (*relaxed_box(self.state_lower, self.state_upper, self.lam),
+                *relaxed_box(self.input_lower, self.input_upper, self.lam))
 
-        For a symmetric box this is exactly λ·(𝒳 × 𝒰); for the z bound [0, 25] and the input
-        bound [0, 12] it keeps the scaling about the centre so that the relaxed set stays
-        inside the original one.
-        """
-        out = []
-        for lo, hi in ((self.state_lower, self.state_upper), (self.input_lower, self.input_upper)):
-            lo, hi = np.asarray(lo), np.asarray(hi)
-            mid, half = (lo + hi) / 2, (hi - lo) / 2
-            out += [mid - self.lam * half, mid + self.lam * half]
-        return tuple(out)
+
+def relaxed_box(lower, upper, lam: float) -> tuple[np.ndarray, np.ndarray]:
+    """The box [lower, upper] shrunk by λ about its centre: λ(𝒳 × 𝒰) of eq. (7).
+
+    For a symmetric box this is exactly λ·𝒳; for the z bound [0, 25] and the input bound
+    [0, 12] it keeps the scaling about the centre so that the relaxed set stays inside the
+    original one.
+    """
+    lo, hi = np.asarray(lower, float), np.asarray(upper, float)
+    mid, half = (lo + hi) / 2, (hi - lo) / 2
+    return mid - lam * half, mid + lam * half
 
 
 @dataclass(frozen=True)
@@ -410,10 +419,11 @@ def _require_int(name: str, value: int, minimum: int) -> None:
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
 
 
-def _require_vector(name: str, value, n: int) -> None:
-    if not (isinstance(value, (tuple, list)) and len(value) == n
+def _require_vector(name: str, value, n: int | None) -> None:
+    """``n`` finite numbers (``None``: at least one)."""
+    if not (isinstance(value, (tuple, list)) and (len(value) == n if n else len(value) >= 1)
             and all(_is_number(x) and math.isfinite(x) for x in value)):
-        raise ValueError(f"{name} must be {n} finite numbers, got {value!r}")
+        raise ValueError(f"{name} must be {n or 'one or more'} finite numbers, got {value!r}")
 
 
 def _require_ordered(lower_name: str, lower, upper_name: str, upper) -> None:

@@ -17,7 +17,8 @@ from a cloud at η = 0.3; the shifted one is exact at any distance.
 
 The y-independent quantities (centroid, ln W_j, ln V) live in :class:`CloudWeights`, computed
 once per cloud. The same expression code serves NumPy (vectorised over query points) and
-CasADi (symbolic, for the NLP).
+CasADi (symbolic, for the NLP). Points and outputs live in R³ (the quadrotor) or R² (a ground
+robot): every function takes clouds of shape (m, 3) or (m, 2) with y of the same dimension.
 """
 
 from __future__ import annotations
@@ -38,8 +39,8 @@ class CloudWeights:
 
     Attributes
     ----------
-    points : (m, 3) array, m.
-    centroid : (3,) array, Cen(𝒜), m.
+    points : (m, p) array, m (p = 3, or 2 for a planar cloud).
+    centroid : (p,) array, Cen(𝒜), m.
     log_weights : (m,) array, ln W_σ(a_j) = −‖a_j − Cen‖²/(2σ²).
     log_volume : float, ln V_σ = ln Σ_j W_j (shifted log-sum-exp).
     sigma : σ, m.
@@ -53,7 +54,7 @@ class CloudWeights:
 
     @classmethod
     def from_cloud(cls, cloud, sigma: float) -> CloudWeights:
-        """Validate a cloud and compute its weights. ``cloud`` : (m, 3) array, m ≥ 1."""
+        """Validate a cloud and compute its weights. ``cloud`` : (m, p) array, m ≥ 1, p = 2 or 3."""
         points = check_cloud(cloud)
         _check_scale("sigma", sigma)
         centroid = points.mean(axis=0)
@@ -66,8 +67,8 @@ def smooth_distance(y, cloud, eta: float, sigma: float):
 
     Parameters
     ----------
-    y : (3,) or (n, 3) array, m.
-    cloud : (m, 3) array of points, m, or a precomputed :class:`CloudWeights`.
+    y : (3,) or (n, 3) array, m ((2,) or (n, 2) with a planar cloud).
+    cloud : (m, 3) array of points (or (m, 2)), m, or a precomputed :class:`CloudWeights`.
     eta : η > 0, m.  sigma : σ > 0, m (ignored when ``cloud`` is a ``CloudWeights``).
 
     Returns
@@ -89,7 +90,7 @@ def smooth_projection(y, cloud, eta: float, sigma: float):
     (n, 3); m. The gradient of D is y − Π (eq. 13).
     """
     weights, ys, single = _prepare(y, cloud, eta, sigma)
-    out = np.empty((len(ys), 3))
+    out = np.empty(ys.shape)
     for sl, sq in _chunks(ys, weights.points):
         e = weights.log_weights - sq / (2.0 * eta**2)
         p = np.exp(e - e.max(axis=-1, keepdims=True))
@@ -108,8 +109,8 @@ def euclidean_distance(y, cloud):
 
     ``y`` : (3,) or (n, 3); returns float or (n,).
     """
-    points = check_cloud(cloud)
     ys, single = _check_queries(y)
+    points = check_cloud(cloud, ys.shape[1])
     out = np.empty(len(ys))
     for sl, sq in _chunks(ys, points):
         out[sl] = 0.5 * sq.min(axis=-1)
@@ -126,8 +127,8 @@ def smooth_distance_symbolic(y, points, log_weights, log_volume, eta: float):
 
     Parameters
     ----------
-    y : (3, 1) CasADi SX/MX, m.
-    points : (m, 3) CasADi matrix (symbolic parameters or constants), m.
+    y : (p, 1) CasADi SX/MX, m (p = 3, or 2 in the plane).
+    points : (m, p) CasADi matrix (symbolic parameters or constants), m.
     log_weights : (m, 1) ln W_j. A slot whose ln W is ≤ −1e30 is padding: its term is
         exp(−1e30 − s) = 0 exactly, so it contributes nothing to D or to any derivative.
     log_volume : scalar ln V of the (visible) cloud.
@@ -147,13 +148,18 @@ def euclidean_distance_symbolic(y, points, mask):
     return 0.5 * ca.mmin(sq + (1.0 - mask) * 1e30)
 
 
-def check_cloud(cloud) -> np.ndarray:
-    """Return the cloud as a float (m, 3) array or raise a ``ValueError`` naming ``cloud``."""
+def check_cloud(cloud, dim: int | None = None) -> np.ndarray:
+    """Return the cloud as a float (m, p) array or raise a ``ValueError`` naming ``cloud``.
+
+    p is 3 (or 2 for a planar cloud); ``dim`` demands one of them (that of the query y).
+    """
+    arr = cloud.points if isinstance(cloud, CloudWeights) else np.asarray(cloud, dtype=float)
+    shape = "(m, 3)" if dim == 3 else "(m, 2)" if dim == 2 else "(m, 3) or (m, 2)"
+    if arr.ndim != 2 or arr.shape[1] not in ((dim,) if dim else (2, 3)):
+        mate = " (the dimension of y)" if dim else ""
+        raise ValueError(f"cloud must have shape {shape}{mate} with m >= 1, got {arr.shape}")
     if isinstance(cloud, CloudWeights):
-        return cloud.points
-    arr = np.asarray(cloud, dtype=float)
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ValueError(f"cloud must have shape (m, 3) with m >= 1, got {arr.shape}")
+        return arr
     if arr.shape[0] == 0:
         raise ValueError("cloud must hold at least one point (m >= 1), got an empty cloud")
     if not np.all(np.isfinite(arr)):
@@ -163,22 +169,21 @@ def check_cloud(cloud) -> np.ndarray:
 
 def _prepare(y, cloud, eta, sigma):
     _check_scale("eta", eta)
-    if isinstance(cloud, CloudWeights):
-        weights = cloud
-    else:
-        weights = CloudWeights.from_cloud(cloud, sigma)
     ys, single = _check_queries(y)
+    check_cloud(cloud, ys.shape[1])
+    weights = cloud if isinstance(cloud, CloudWeights) else CloudWeights.from_cloud(cloud, sigma)
     return weights, ys, single
 
 
 def _check_queries(y):
     arr = np.asarray(y, dtype=float)
-    if arr.shape == (3,):
+    if arr.shape in ((3,), (2,)):
         arr, single = arr[None, :], True
-    elif arr.ndim == 2 and arr.shape[1] == 3:
+    elif arr.ndim == 2 and arr.shape[1] in (2, 3):
         single = False
     else:
-        raise ValueError(f"y must have shape (3,) or (n, 3), got {arr.shape}")
+        raise ValueError(f"y must have shape (3,) or (n, 3) (or (2,), (n, 2) in the plane), "
+                         f"got {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise ValueError("y must contain only finite coordinates")
     return arr, single
@@ -221,6 +226,6 @@ def _logsumexp_casadi(e):
 
 
 def _sq_dist_casadi(y, points):
-    m = points.shape[0]
-    diff = ca.repmat(ca.reshape(y, 1, 3), m, 1) - points
+    m, p = points.shape
+    diff = ca.repmat(ca.reshape(y, 1, p), m, 1) - points
     return ca.sum2(diff * diff)

@@ -26,7 +26,8 @@ import casadi as ca
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .config import QuadrotorParams
+from .config import Config, QuadrotorParams
+from .vehicle import Equilibria, VehicleModel, rk4
 
 N_STATES = 12
 N_INPUTS = 4
@@ -66,22 +67,32 @@ def rk4_discretisation(ts: float, params: QuadrotorParams | None = None,
 
     Returns the CasADi function ``f(x[12], u[4]) -> x_next[12]`` used as prediction model (eq. 1).
     """
-    if not (ts > 0 and math.isfinite(ts)):
-        raise ValueError(f"ts must be a finite number > 0 (s), got {ts!r}")
-    if not (isinstance(steps, int) and steps >= 1):
-        raise ValueError(f"steps must be an integer >= 1, got {steps!r}")
-    f_c = symbolic_dynamics(params)
+    return rk4(symbolic_dynamics(params), ts, steps)
+
+
+def quadrotor_model(config: Config | None = None) -> VehicleModel:
+    """The quadrotor as the NMPC sees it (:class:`~paper_repro.vehicle.VehicleModel`).
+
+    Output y = position (3,). 𝒳 and 𝒰 are ``config.nmpc``'s bounds. Its equilibria are
+    parametrised exactly by a = (position, yaw) with hover thrust (see :func:`equilibrium`), a
+    bounded by the λ-relaxed box's position and yaw entries.
+    """
+    cfg = config or Config()
+    p = cfg.nmpc
     x = ca.SX.sym("x", N_STATES)
-    u = ca.SX.sym("u", N_INPUTS)
-    h = ts / steps
-    xk = x
-    for _ in range(steps):
-        k1 = f_c(xk, u)
-        k2 = f_c(xk + h / 2 * k1, u)
-        k3 = f_c(xk + h / 2 * k2, u)
-        k4 = f_c(xk + h * k3, u)
-        xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return ca.Function("f_d", [x, u], [xk], ["x", "u"], ["x_next"])
+    a = ca.SX.sym("a", 4)
+    hover = cfg.quadrotor.hover_thrust
+    xal, xau, _, _ = p.relaxed_bounds()
+    yaw_and_position = [0, 1, 2, 5]
+    equilibria = Equilibria(
+        state=ca.Function("x_a", [a], [ca.vertcat(a[:3], 0, 0, a[3], ca.SX.zeros(6))]),
+        input=ca.Function("u_a", [a], [ca.DM.ones(N_INPUTS) * hover]),
+        lower=tuple(xal[yaw_and_position]), upper=tuple(xau[yaw_and_position]),
+        of_state=lambda xs: np.asarray(xs, float)[yaw_and_position])
+    return VehicleModel(
+        "quadrotor", symbolic_dynamics(cfg.quadrotor), ca.Function("h", [x], [x[:3]]),
+        p.state_lower, p.state_upper, p.input_lower, p.input_upper, equilibria,
+        position=(0, 1, 2))
 
 
 def plant_step(x, u, ts: float, params: QuadrotorParams | None = None,

@@ -1,32 +1,40 @@
-"""Real-time NMPC: Gauss-Newton SQP on the OCP's stage structure, with a Riccati QP solver.
+"""Real-time NMPC: Gauss-Newton SQP on the stage structure of problem (21).
 
-Same optimal control problem as :mod:`paper_repro.nmpc` (the IPOPT reference), rewritten so that
-every term lives in one stage and a structure-exploiting QP solver applies:
+The same :class:`~paper_repro.ocp.OCP` as the IPOPT reference (:mod:`paper_repro.nmpc`),
+rewritten so that every term lives in one stage and a structure-exploiting QP solver applies:
 
-* **Artificial equilibrium as constant states.** The quadrotor's equilibria are exactly
-  (position, yaw) with hover thrust, so (x_a, u_a) = E(a), a = (p_a, ψ_a) ∈ R⁴, with no
-  equilibrium constraint. ``a`` is carried along the horizon with a_{j+1} = a_j; x_N = x_a
-  becomes the linear stage-N constraint x_N − E(a_N) = 0.
+* **Artificial equilibrium as constant states.** a is carried along the horizon with
+  a_{j+1} = a_j. With an equilibrium parametrisation (the quadrotor: a = (p_a, ψ_a), hover
+  thrust) (x_a, u_a) = (state(a), input(a)) and x_N = x_a is the linear stage-N row
+  x_N − state(a_N) = 0. Without one, a = (x_a, u_a) and the stage-N rows are x_N − x_a = 0 and
+  x_a − f(x_a, u_a) = 0 (:class:`~paper_repro.stage_qp.StageQP` takes any terminal rows).
 * **Barrier coupling as a carried state.** g_j = c·β(y_j) − β(y_{j+1}) couples two stages.
   Carrying s_{j+1} = β(y_j) (one state per region slot) makes g_j = c·s_{j+1} − β(y_{j+1}) a
   function of stage j+1 alone. The last terms, g_N = c·β(y_N) − β(y_a) and F(y_a), live at
-  stage N with y_a = p_a.
+  stage N.
 * **Gauss-Newton Hessian.** The tracking terms are linear least squares; every penalty is
-  F(g) with F = (1/κ)[ln(1 + e^{κg})]^ε convex and increasing (ε ≥ 1), so
-  F''(g)·∇g∇gᵀ is a positive semidefinite curvature model (the exact penalty Hessian is
-  indefinite and made the real-time iteration chatter in a prototype).
+  F(g) with F convex and increasing (ε ≥ 1), so F''(g)·∇g∇gᵀ is a positive semidefinite
+  curvature model (the exact penalty Hessian is indefinite and made the real-time iteration
+  chatter in a prototype).
 
-Each iteration linearises all stages with one call of a CasADi function generated as C, built
-once with the system compiler and cached (:class:`~paper_repro._native.NativeFunction`), and
-solves the QP with :class:`~paper_repro.stage_qp.StageQP`: a Riccati recursion that starts from
-the previous instant's active set, so that one factorisation usually suffices. HPIPM (shipped
-with CasADi) is the fallback and the alternative (``qp_solver="hpipm"``). The default runs up
-to ``max_iter`` full SQP steps per sampling instant and stops early when the step is small.
+Four parts, one job each:
+
+* :func:`linearisation`: the CasADi function that evaluates every stage's QP blocks at the
+  iterate, built from the ``OCP``'s terms (derivatives by CasADi's AD, the penalty's from
+  :meth:`~paper_repro.ocp.OCP.penalty_derivatives`).
+* :class:`LinearisationLadder`: that function compiled as C for several LiDAR capacities; a
+  scan uses the smallest that holds it.
+* :class:`QPLayout`: where every variable, block and bound sits in the stage QP (pure index
+  arithmetic; :meth:`QPLayout.dense` assembles the dense QP, for tests and for HPIPM).
+* :class:`QPChain`: the QP backends, the Riccati solver (:class:`~paper_repro.stage_qp.StageQP`,
+  warm-started with the previous active set) first and HPIPM as its fallback, with counters.
+
+:class:`RealTimeNMPC` is the thin SQP loop that joins them: up to ``max_iter`` full steps per
+sampling instant, stopping early when the step is small.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import time
 
 import casadi as ca
@@ -34,21 +42,20 @@ import numpy as np
 
 from ._native import NativeFunction, compiler
 from .config import Config
-from .model import N_INPUTS, N_STATES, rk4_discretisation
-from .nmpc import NMPCSolution, _as_vector, check_visible, pack_scan, region_barrier
+from .ocp import OCP, NMPCSolution, ScanLayout, as_vector, check_visible
 from .stage_qp import StageQP
-
-N_EQ = 4  # artificial equilibrium: position (3) and yaw
+from .vehicle import VehicleModel
 
 
 class RealTimeNMPC:
-    """The paper's tracking NMPC solved by Gauss-Newton SQP on its stage structure.
+    """Problem (21) solved by Gauss-Newton SQP on its stage structure.
 
     Parameters
     ----------
-    config : run configuration (same fields as :class:`~paper_repro.nmpc.TrackingNMPC`).
+    config : run configuration (as for :class:`~paper_repro.nmpc.TrackingNMPC`).
+    model : the vehicle, the quadrotor by default (see :class:`~paper_repro.ocp.OCP`).
     max_iter : SQP iterations per sampling instant (1 is the classic real-time iteration).
-    step_tol : stop iterating when max |Δw| falls below this.
+    step_tol : stop iterating when max |Δw| over x, u and a_0 falls below this.
     qp_solver : ``"riccati"`` (default): :class:`~paper_repro.stage_qp.StageQP`, a Riccati
         recursion warm-started with the previous active set, with HPIPM as the fallback when
         it does not find the active set; ``"hpipm"``: HPIPM's interior-point method for
@@ -56,24 +63,19 @@ class RealTimeNMPC:
     compile : build the linearisation as C code (cached). ``False`` uses CasADi's virtual
         machine (slower, no compiler needed) and HPIPM.
     capacities : smaller LiDAR capacities (points per region slot) compiled besides the
-        config's ``points_per_region``; each scan uses the smallest that holds it. Same QP,
-        less work: with 16 points in view the capacity-16 linearisation takes about a fifth of
-        the time of the capacity-120 one, and with at most one point per region (nothing in
-        range, say) the capacity-1 one about half of the capacity-16 one. The cost grows by
-        about 3 µs per point of capacity (2 slots × 35 stages), so the ladder is fine where
-        scans of a paper mission fall (half see nothing, a third hold 17-48 points)
-        (``()``: the config's capacity only).
+        config's ``points_per_region`` (see :class:`LinearisationLadder`; ``()``: the
+        config's capacity only).
 
     Attributes
     ----------
+    ocp : the problem.  layout : its :class:`QPLayout`.
     qp_counts : QPs solved so far by each path: ``riccati``, ``hpipm`` (as the chosen solver
         or as the fallback) and ``failed``.
     """
 
-    def __init__(self, config: Config | None = None, max_iter: int = 1, step_tol: float = 1e-6,
-                 qp_solver: str = "riccati", compile: bool = True,
-                 capacities: tuple[int, ...] = (1, 8, 16, 24, 32, 48)):
-        self.config = cfg = config or Config()
+    def __init__(self, config: Config | None = None, model: VehicleModel | None = None,
+                 max_iter: int = 1, step_tol: float = 1e-6, qp_solver: str = "riccati",
+                 compile: bool = True, capacities: tuple[int, ...] = (1, 8, 16, 24, 32, 48)):
         if not (isinstance(max_iter, int) and max_iter >= 1):
             raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
         if not step_tol > 0:
@@ -82,53 +84,20 @@ class RealTimeNMPC:
             raise ValueError(f"capacities must be integers >= 1, got {capacities!r}")
         if qp_solver not in ("riccati", "hpipm"):
             raise ValueError(f"qp_solver must be 'riccati' or 'hpipm', got {qp_solver!r}")
+        self.ocp = ocp = OCP(config, model)
+        self.config, self.horizon = ocp.config, ocp.horizon
         self.max_iter, self.step_tol = max_iter, step_tol
-        p = cfg.nmpc
-        self.horizon, self.region_slots = p.horizon, p.region_slots
-        self.points_per_region = p.points_per_region
-        self.metric = cfg.distance.metric
-        self._hover = np.full(N_INPUTS, cfg.quadrotor.hover_thrust)
-        self._layout()
-        fn = _linearisation(cfg)
-        self._lin_sizes = [fn.nnz_out(i) for i in range(fn.n_out())]
-        native = compile and compiler() is not None
-        self.qp_solver = qp_solver if native else "hpipm"
-        # The linearisation writes straight into fixed buffers (NativeFunction); without a
-        # compiler it runs in CasADi's virtual machine. Compiled, it comes in several LiDAR
-        # capacities: a scan uses the smallest that holds it. Padding contributes exactly 0,
-        # so every capacity gives the same QP; the small ones skip the padding's arithmetic.
-        self._lins = [(p.points_per_region, cfg, fn)]
-        if native:
-            self._lins = []
-            for cap in sorted({c for c in capacities if c < p.points_per_region}
-                              | {p.points_per_region}):
-                c_cfg = dataclasses.replace(
-                    cfg, nmpc=dataclasses.replace(p, points_per_region=cap))
-                c_fn = fn if cap == p.points_per_region else _linearisation(c_cfg)
-                self._lins.append((cap, c_cfg, NativeFunction(c_fn)))
-        self._riccati = (StageQP(self._nz, [N_INPUTS] * self.horizon, N_STATES)
-                         if self.qp_solver == "riccati" else None)
-        self._hpipm = ca.conic("rti_qp", "hpipm", {"h": self._h_sp, "a": self._a_sp},
-                               {"N": self.horizon, "nx": self._nz,
-                                "nu": [N_INPUTS] * self.horizon + [0],
-                                "ng": [0] * self.horizon + [N_STATES],
-                                # 'robust' converges where 'speed' stalls on this problem;
-                                # bounds of ±1e4 on the free variables keep HPIPM's
-                                # tolerances relative.
-                                "hpipm": {"iter_max": 100, "mode": "robust"}, "inf": 1e4,
-                                "error_on_fail": False, "print_problem": False})
-        self._qp_matrices = self._matrix_function()
-        self.qp_counts = {"riccati": 0, "hpipm": 0, "failed": 0}
-        self._empty_scans = {}  # capacity -> packed parameters of a scan that sees nothing
+        self.layout = QPLayout.of(ocp)
+        self.ladder = LinearisationLadder(ocp, capacities, compile)
+        self.qp_solver = qp_solver if self.ladder.native else "hpipm"
+        self.qp = QPChain(self.layout, self.qp_solver)
+        self._lbw, self._ubw = self.layout.bounds(ocp)
+        self._equilibrium = _equilibrium_maps(ocp)  # a -> (x_a, u_a), numeric
+        self._position = list(ocp.model.position)
 
-    def _matrix_function(self) -> ca.Function:
-        """Blocks of the linearisation -> HPIPM's sparse H and A (a fixed permutation)."""
-        h_src = ca.MX.sym("h", self._lin_sizes[0])
-        j_src = ca.MX.sym("j", self._lin_sizes[2])
-        a_src = ca.vertcat(j_src[:self._n_ab], ca.DM(self._minus_ones), j_src[self._n_ab:])
-        h = ca.MX(self._h_sp, h_src[self._h_perm.tolist()])
-        amat = ca.MX(self._a_sp, a_src[self._a_perm.tolist()])
-        return ca.Function("rti_qp_matrices", [h_src, j_src], [h, amat])
+    @property
+    def qp_counts(self) -> dict[str, int]:
+        return self.qp.counts
 
     # --- public ------------------------------------------------------------------------------
 
@@ -142,292 +111,143 @@ class RealTimeNMPC:
         ``status`` is ``"iterated"`` (``max_iter`` SQP steps taken, the real-time iteration's
         normal outcome), ``"converged"`` (step below ``step_tol``) or ``"qp_failed"``."""
         start = time.perf_counter()  # solve_time includes packing the scan: the whole call
-        x0 = _as_vector("x0", x0, N_STATES)
-        target = _as_vector("target", target, 3)
-        visible = check_visible(visible)
-        lin, lin_cfg = self._linearisation_for(visible)
-        params = np.concatenate([target, self._pack_scan(visible, x0, lin_cfg)])
-        guess = previous.reanchored(x0) if previous is not None else self.hover_guess(x0)
-        X = np.array(guess.x, dtype=float)  # (N+1, 12)
+        ocp, layout = self.ocp, self.layout
+        x0 = as_vector("x0", x0, ocp.nx)
+        target = as_vector("target", target, ocp.ny)
+        visible = check_visible(visible, ocp.ny)
+        lin, scan = self.ladder.for_scan(visible)
+        params = np.concatenate([target, self.ladder.pack(visible, ocp.output(x0), scan)])
+        if previous is None:
+            guess = self.hover_guess(x0)
+        elif self._position:
+            guess = previous.reanchored(x0, self._position)
+        else:
+            guess = previous.shifted()
+        X = np.array(guess.x, dtype=float)  # (N+1, n_x)
         X[0] = x0
         U = np.array(guess.u, dtype=float)
-        a = np.array([*guess.x_a[:3], guess.x_a[5]], dtype=float)
+        a = layout.parameters_of(ocp, guess.x_a, guess.u_a)
 
         success, status, it = False, "iterated", 0
         for it in range(1, self.max_iter + 1):  # noqa: B007 - `it` is reported below
-            step, ok = self._sqp_step(lin, x0, X, U, a, params)
-            if not ok:
+            w = layout.scatter(X[1:], U, a)
+            blocks = self.ladder.evaluate(lin, x0, X[1:], U, a, params)
+            dw = self.qp.solve(*blocks, self._lbw - w, self._ubw - w)
+            if dw is None:
                 success, status = False, "qp_failed"
                 break
-            X[1:] += step["x"]
-            U += step["u"]
-            a += step["a"]
-            if step["size"] < self.step_tol:
+            dx, du, da = layout.gather(dw)
+            X[1:] += dx
+            U += du
+            a += da
+            if float(np.abs(dw[layout.bounded]).max()) < self.step_tol:
                 success, status = True, "converged"
                 break
         else:
             success, status = True, "iterated"  # real-time iteration: the last iterate is used
         elapsed = time.perf_counter() - start
         finite = np.isfinite(X).all() and np.isfinite(U).all() and np.isfinite(a).all()
-        x_a = self._x_eq(a)
-        return NMPCSolution(U, X, x_a, self._hover.copy(), bool(success and finite), status, it,
-                            elapsed, np.nan)
+        x_a, u_a = self._equilibrium(a)
+        return NMPCSolution(U, X, x_a, u_a, bool(success and finite), status, it, elapsed,
+                            np.nan)
 
     def reset(self) -> None:
         """Forget everything carried from one solve to the next (the Riccati solver's active
         set and multipliers), so that a new flight starts from a clean slate and is
         bit-identical whether this controller is new or reused. ``qp_counts`` keeps counting."""
-        if self._riccati is not None:
-            self._riccati.reset()
+        self.qp.reset()
 
     def hover_guess(self, x0) -> NMPCSolution:
-        x0 = np.asarray(x0, float)
-        x_a = self._x_eq(np.array([x0[0], x0[1], x0[2], x0[5]]))
-        n = self.horizon
-        return NMPCSolution(np.tile(self._hover, (n, 1)), np.tile(x_a, (n + 1, 1)), x_a,
-                            self._hover.copy(), True, "guess", 0, 0.0, np.nan)
+        """Rest where the vehicle is for the whole horizon (the quadrotor: hover)."""
+        return self.ocp.rest(x0)
 
     def obstacle_parameters(self, visible, position) -> np.ndarray:
-        return pack_scan(visible, position, self.config)
-
-    # --- internals -----------------------------------------------------------------------------
-
-    def _x_eq(self, a):
-        x = np.zeros(N_STATES)
-        x[:3], x[5] = a[:3], a[3]
-        return x
-
-    def _pack_scan(self, visible, x0, cfg):
-        """:func:`~paper_repro.nmpc.pack_scan`, except that the packing of an empty scan, the
-        same wherever the UAV is, is made once per capacity (empty scans are common: nothing
-        in LiDAR range)."""
-        if any(len(v) for v in visible):
-            return pack_scan(visible, x0[:3], cfg)
-        cap = cfg.nmpc.points_per_region
-        if cap not in self._empty_scans:
-            self._empty_scans[cap] = pack_scan((), x0[:3], cfg)
-        return self._empty_scans[cap]
-
-    def _linearisation_for(self, visible):
-        """The compiled linearisation of the smallest capacity that holds the scan."""
-        need = max((len(v) for v in visible), default=0)
-        for cap, cfg, fn in self._lins:
-            if need <= cap:
-                return fn, cfg
-        return self._lins[-1][2], self._lins[-1][1]  # pack_scan keeps the nearest points
-
-    def _linearise(self, lin, x0, X, U, a, params):
-        """Every stage's QP blocks at this iterate: h, q, j ([A_j B_j] then C), gap, eq."""
-        A = np.tile(a[:, None], (1, self.horizon + 1))
-        if isinstance(lin, NativeFunction):
-            ins = lin.inputs
-            ins[0][:, 0], ins[1][:], ins[2][:], ins[3][:], ins[4][:, 0] = \
-                x0, X[1:].T, U.T, A, params
-            lin()
-            return lin.outputs
-        return [np.asarray(v).ravel() for v in lin(x0, X[1:].T, U.T, A, params)]
-
-    def _sqp_step(self, lin, x0, X, U, a, params):
-        """One Gauss-Newton SQP step: linearise every stage, solve the QP."""
-        w = np.zeros(self._nw)  # the iterate; s entries are 0 and unbounded
-        w[self._iw_x] = X[1:]
-        w[self._iw_u] = U
-        w[self._iw_a] = a
-        h, q, j, gap, eq = self._linearise(lin, x0, X, U, a, params)
-        lb, ub = self._lbw - w, self._ubw - w
-        dw = None
-        if self._riccati is not None:
-            res = self._riccati.solve(h, q, j[:self._n_ab], gap, j[self._n_ab:], -eq, lb, ub)
-            if res.success:
-                dw = res.z
-                self.qp_counts["riccati"] += 1
-        if dw is None:
-            dw = self._solve_hpipm(h, q, j, gap, eq, lb, ub)
-        ok = dw is not None and bool(np.isfinite(dw).all())
-        if not ok:
-            self.qp_counts["failed"] += 1
-            return {}, False
-        size = float(np.abs(dw[self._bounded]).max())
-        return {"x": dw[self._iw_x], "u": dw[self._iw_u], "a": dw[self._iw_a[0]],
-                "size": size}, True
-
-    def _solve_hpipm(self, h, q, j, gap, eq, lb, ub):
-        """The QP by HPIPM; its active set then seeds the Riccati solver's next call."""
-        hmat, amat = self._qp_matrices(h, j)
-        rhs = -np.concatenate([gap, eq])
-        sol = self._hpipm(h=hmat, g=q, a=amat, lba=rhs, uba=rhs, lbx=lb, ubx=ub)
-        if not self._hpipm.stats().get("success", False):
-            return None
-        self.qp_counts["hpipm"] += 1
-        dw = np.asarray(sol["x"]).ravel()
-        if self._riccati is not None:
-            self._riccati.seed(dw, lb, ub, np.asarray(sol["lam_x"]).ravel())
-        return dw
-
-    def _layout(self):
-        """Sparsity of the QP and the maps from the compiled function's blocks to it."""
-        n, ns = self.horizon, self.region_slots
-        self._ns = ns
-        nz_mid = N_STATES + N_EQ + ns
-        self._nz = [N_EQ] + [nz_mid] * n
-        sizes = [N_EQ + N_INPUTS] + [nz_mid + N_INPUTS] * (n - 1) + [nz_mid]
-        offsets = np.concatenate([[0], np.cumsum(sizes)])
-        nw = int(offsets[-1])
-
-        # Hessian: dense diagonal blocks, stored by the compiled function one after the other,
-        # each in column-major order.
-        index = -np.ones((nw, nw), dtype=int)
-        k = 0
-        for j, s in enumerate(sizes):
-            o = offsets[j]
-            index[o:o + s, o:o + s] = np.arange(k, k + s * s).reshape(s, s, order="F")
-            k += s * s
-        self._h_sp, self._h_perm = _sparsity_and_perm(index)
-
-        # Constraints: gap rows of stage j: [A_j B_j] on stage j, −I on stage j+1; then the
-        # terminal rows x_N − E(a_N) = 0: [I, −∂E/∂a, 0] on stage N.
-        rows = [nz_mid] * n + [N_STATES]
-        row_off = np.concatenate([[0], np.cumsum(rows)])
-        index = -np.ones((int(row_off[-1]), nw), dtype=int)
-        k = 0
-        for j in range(n):
-            r, s = row_off[j], sizes[j]
-            index[r:r + nz_mid, offsets[j]:offsets[j] + s] = \
-                np.arange(k, k + nz_mid * s).reshape(nz_mid, s, order="F")
-            k += nz_mid * s
-        n_ab = k
-        for j in range(n):
-            r, o = row_off[j], offsets[j + 1]
-            index[r + np.arange(nz_mid), o + np.arange(nz_mid)] = n_ab + np.arange(nz_mid)
-        n_ab += nz_mid * n
-        r, o = row_off[n], offsets[n]
-        index[r:r + N_STATES, o:o + nz_mid] = \
-            np.arange(n_ab, n_ab + N_STATES * nz_mid).reshape(N_STATES, nz_mid, order="F")
-        self._a_sp, self._a_perm = _sparsity_and_perm(index)
-        self._n_ab = n_ab - nz_mid * n  # entries of [A_j B_j] in the compiled output
-        self._minus_ones = -np.ones(nz_mid * n)
-
-        # Positions of x_1..x_N, u_0..u_{N−1} and a_0..a_N in the variable vector.
-        self._nw = nw
-        self._iw_x = np.array([offsets[j] + np.arange(N_STATES) for j in range(1, n + 1)])
-        self._iw_u = np.array([offsets[j] + self._nz[j] + np.arange(N_INPUTS)
-                               for j in range(n)])
-        self._iw_a = np.array([offsets[0] + np.arange(N_EQ)]
-                              + [offsets[j] + N_STATES + np.arange(N_EQ)
-                                 for j in range(1, n + 1)])
-
-        # Bounds of the full variable vector.
-        p = self.config.nmpc
-        xl, xu = np.asarray(p.state_lower), np.asarray(p.state_upper)
-        ul, uu = np.asarray(p.input_lower), np.asarray(p.input_upper)
-        xal, xau, _, _ = p.relaxed_bounds()
-        al, au = np.r_[xal[:3], xal[5]], np.r_[xau[:3], xau[5]]
-        free = np.full(N_EQ + ns, np.inf)
-        lb = [al, ul]
-        ub = [au, uu]
-        for _ in range(1, n):
-            lb += [xl, -free, ul]
-            ub += [xu, free, uu]
-        lb += [xl, -free]
-        ub += [xu, free]
-        self._lbw, self._ubw = np.concatenate(lb), np.concatenate(ub)
-        # x, u and a_0: the steps that matter (indices: faster to gather than a mask)
-        self._bounded = np.flatnonzero(np.isfinite(self._lbw))
+        """The LiDAR scan in the parameter layout of the config's capacity."""
+        return self.ocp.scan.pack(visible, position)
 
 
-def _sparsity_and_perm(index: np.ndarray):
-    """Column-major sparsity of the entries ≥ 0 of ``index`` and their source positions."""
-    cols, rows = np.nonzero(index.T >= 0)  # column-major order
-    sp = ca.Sparsity.triplet(index.shape[0], index.shape[1], rows.tolist(), cols.tolist())
-    return sp, index[rows, cols]
+# --- the linearisation -------------------------------------------------------------------------
 
-
-def _linearisation(cfg: Config) -> ca.Function:
+def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
     """CasADi function giving every block of the Gauss-Newton QP at the current iterate.
 
-    Inputs: x0 (12), X (12 × N: x_1..x_N), U (4 × N), A (4 × N+1: a at each stage), params.
+    Inputs: x0 (n_x), X (n_x × N: x_1..x_N), U (n_u × N), A (n_a × N+1: a at each stage),
+    p (y_t, then the scan in ``scan``'s layout, the OCP's by default).
     Outputs, flattened column-major and concatenated over stages:
-      H blocks (stage 0: (a, u); stages 1..N−1: (x, a, s, u); stage N: (x, a, s)), gradient q,
-      [A_j B_j] gap Jacobians followed by nothing else (the −I blocks are constants),
-      gap residuals φ(z_j, u_j) − z_{j+1}, terminal residual x_N − E(a_N).
+      h: Hessian blocks (stage 0: (a, u); stages 1..N−1: (x, a, s, u); stage N: (x, a, s)),
+      q: gradient, j: [A_j B_j] gap Jacobians then the terminal Jacobian C (the −I blocks of the
+      gaps are constants), gap: residuals φ(z_j, u_j) − z_{j+1}, eq: terminal residual.
     """
-    p, b, d = cfg.nmpc, cfg.barrier, cfg.distance
-    n, ns = p.horizon, p.region_slots
-    f = rk4_discretisation(p.prediction_step, cfg.quadrotor)
-    hover = cfg.quadrotor.hover_thrust
-    sq_q, sq_r, sq_t = (np.sqrt(np.asarray(v, float)) for v in (p.q, p.r, p.t))
-    c = b.decay
+    scan = scan or ocp.scan
+    n, nx, nu, ns = ocp.horizon, ocp.nx, ocp.nu, scan.slots
+    f, h = ocp.f, ocp.h
+    x_of, u_of, na, at_rest = _equilibrium_expressions(ocp)
 
     # Barrier of every region slot, as a function of y and the packed parameters.
-    yt = ca.SX.sym("y_t", 3)
-    slots = [region_barrier(d.metric, d.eta, b.d_min, p.points_per_region) for _ in range(ns)]
-    obstacle = ca.vertcat(*[s[0] for s in slots])
-    params = ca.vertcat(yt, obstacle)
-    y = ca.SX.sym("y", 3)
-    beta = ca.Function("beta", [y, params],
-                       [ca.vertcat(*[s[1](y) for s in slots])])
-    active = ca.vertcat(*[s[0][-1] for s in slots])
+    yt = ca.SX.sym("y_t", ocp.ny)
+    scan_params, beta_slots, active = scan.barriers()
+    params = ca.vertcat(yt, scan_params)
+    y = ca.SX.sym("y", ocp.ny)
+    beta = ca.Function("beta", [y, params], [beta_slots(y)])
 
-    def eq_state(a):
-        return ca.vertcat(a[:3], 0, 0, a[3], ca.SX.zeros(6))
-
-    def gn(residual, barrier_args, v):
+    def gn(residual, penalties, v):
         """Gauss-Newton Hessian and exact gradient of ‖r‖² + μ Σ active·F(g)."""
         jr = ca.jacobian(residual, v)
-        h = 2 * ca.mtimes(jr.T, jr)
-        q = 2 * ca.mtimes(jr.T, residual)
-        for g, weight in barrier_args:
+        hess = 2 * ca.mtimes(jr.T, jr)
+        grad = 2 * ca.mtimes(jr.T, residual)
+        for g, weight in penalties:
             jg = ca.jacobian(g, v)
-            d1, d2 = _penalty_derivatives(g, b.kappa, b.epsilon)
-            h += b.mu * weight * d2 * ca.mtimes(jg.T, jg)
-            q += b.mu * weight * d1 * jg.T
-        return h, q
+            d1, d2 = ocp.penalty_derivatives(g)
+            hess += ocp.mu * weight * d2 * ca.mtimes(jg.T, jg)
+            grad += ocp.mu * weight * d1 * jg.T
+        return hess, grad
 
     # Stage 0: v = (a, u); x0 is known.
-    x0 = ca.SX.sym("x0", N_STATES)
-    a = ca.SX.sym("a", N_EQ)
-    u = ca.SX.sym("u", N_INPUTS)
+    x0 = ca.SX.sym("x0", nx)
+    a = ca.SX.sym("a", na)
+    u = ca.SX.sym("u", nu)
     v0 = ca.vertcat(a, u)
-    r0 = ca.vertcat(sq_q * (x0 - eq_state(a)), sq_r * (u - hover))
-    h0, q0 = gn(r0, [], v0)
-    phi0 = ca.vertcat(f(x0, u), a, beta(x0[:3], params))
+    h0, q0 = gn(ocp.tracking_residual(x0, u, x_of(a), u_of(a)), [], v0)
+    phi0 = ca.vertcat(f(x0, u), a, beta(h(x0), params))
     stage0 = ca.Function("stage0", [x0, a, u, params],
                          [ca.vec(h0), q0, ca.vec(ca.jacobian(phi0, v0)), phi0])
 
     # Stages 1..N−1: v = (x, a, s, u), s_j = β(y_{j−1}) carried.
-    x = ca.SX.sym("x", N_STATES)
+    x = ca.SX.sym("x", nx)
     s = ca.SX.sym("s", ns)
     vj = ca.vertcat(x, a, s, u)
-    rj = ca.vertcat(sq_q * (x - eq_state(a)), sq_r * (u - hover))
-    bj = beta(x[:3], params)
-    gj = [(c * s[i] - bj[i], active[i]) for i in range(ns)]
-    hj, qj = gn(rj, gj, vj)
+    bj = beta(h(x), params)
+    gj = [(ocp.violation(s[i], bj[i]), active[i]) for i in range(ns)]
+    hj, qj = gn(ocp.tracking_residual(x, u, x_of(a), u_of(a)), gj, vj)
     phij = ca.vertcat(f(x, u), a, bj)
-    x_prev = ca.SX.sym("x_prev", N_STATES)
+    x_prev = ca.SX.sym("x_prev", nx)
     inner = ca.Function("inner", [x, a, s, u, params],
                         [ca.vec(hj), qj, ca.vec(ca.jacobian(phij, vj)), phij])
-    h_, q_, ab_, phi_ = inner(x, a, beta(x_prev[:3], params), u, params)
+    h_, q_, ab_, phi_ = inner(x, a, beta(h(x_prev), params), u, params)
     stage = ca.Function("stage", [x_prev, x, a, u, params], [h_, q_, ab_, phi_])
 
-    # Stage N: v = (x, a, s); cost T‖p_a − y_t‖², the last barrier terms; x_N = E(a).
+    # Stage N: v = (x, a, s); cost T‖y_a − y_t‖², the last barrier terms; x_N = x_a (and
+    # x_a = f(x_a, u_a) without a parametrisation).
     vn = ca.vertcat(x, a, s)
-    bn, ba = beta(x[:3], params), beta(a[:3], params)
+    y_a = h(x_of(a))
+    bn, ba = beta(h(x), params), beta(y_a, params)
     gn_terms = []
     for i in range(ns):
-        gn_terms += [(c * s[i] - bn[i], active[i]), (c * bn[i] - ba[i], active[i]),
-                     ((c - 1.0) * ba[i], active[i])]
-    hn, qn = gn(sq_t * (a[:3] - yt), gn_terms, vn)
-    eq_res = x - eq_state(a)
+        gn_terms += [(ocp.violation(s[i], bn[i]), active[i]),
+                     (ocp.violation(bn[i], ba[i]), active[i]),
+                     (ocp.equilibrium_violation(ba[i]), active[i])]
+    hn, qn = gn(ocp.offset_residual(y_a, yt), gn_terms, vn)
+    eq_res = ca.vertcat(x - x_of(a), at_rest(a))
     inner_n = ca.Function("inner_n", [x, a, s, params],
                           [ca.vec(hn), qn, ca.vec(ca.jacobian(eq_res, vn)), eq_res])
-    hN, qN, jN, eN = inner_n(x, a, beta(x_prev[:3], params), params)
+    hN, qN, jN, eN = inner_n(x, a, beta(h(x_prev), params), params)
     stage_n = ca.Function("stage_n", [x_prev, x, a, params], [hN, qN, jN, eN])
 
     # Whole horizon.
-    X0 = ca.MX.sym("x0", N_STATES)
-    X = ca.MX.sym("X", N_STATES, n)
-    U = ca.MX.sym("U", N_INPUTS, n)
-    A = ca.MX.sym("A", N_EQ, n + 1)
+    X0 = ca.MX.sym("x0", nx)
+    X = ca.MX.sym("X", nx, n)
+    U = ca.MX.sym("U", nu, n)
+    A = ca.MX.sym("A", na, n + 1)
     P = ca.MX.sym("p", params.shape[0])
     h0m, q0m, j0m, phi0m = stage0(X0, A[:, 0], U[:, 0], P)
     mid = stage.map(n - 1, "serial")
@@ -438,26 +258,319 @@ def _linearisation(cfg: Config) -> ca.Function:
     # is never stored, only recomputed), so the s part of every gap is exactly zero.
     zero_s = ca.MX.zeros(ns, 1)
     phis = ca.horzcat(phi0m, phim)
-    gaps = ca.vertcat(*[ca.vertcat(phis[:N_STATES, j] - X[:, j],
-                                   phis[N_STATES:N_STATES + N_EQ, j] - A[:, j + 1], zero_s)
+    gaps = ca.vertcat(*[ca.vertcat(phis[:nx, j] - X[:, j], phis[nx:nx + na, j] - A[:, j + 1],
+                                   zero_s)
                         for j in range(n)])
     H = ca.vertcat(h0m, ca.vec(hm), hN_)
     Q = ca.vertcat(q0m, ca.vec(qm), qN_)
     J = ca.vertcat(j0m, ca.vec(jm), jN_)
 
     outs = [ca.densify(v) for v in (H, Q, J, gaps, eN_)]
-    return ca.Function("rti_linearisation", [X0, X, U, A, P], outs,
+    return ca.Function(f"rti_linearisation_{ocp.model.name}", [X0, X, U, A, P], outs,
                        ["x0", "X", "U", "A", "p"], ["h", "q", "j", "gap", "eq"])
 
 
-def _penalty_derivatives(g, kappa: float, epsilon: float):
-    """F'(g) and F''(g) of F = (1/κ)·sp(κg)^ε, sp the softplus, in overflow-free form."""
-    z = kappa * g
-    # sp is clamped away from 0 so that sp^(ε−2) stays finite where it underflows; there
-    # σ = 0 as well, so the products are exactly 0.
-    sp = ca.fmax(ca.fmax(z, 0) + ca.log1p(ca.exp(-ca.fabs(z))), 1e-300)
-    sig = 1.0 / (1.0 + ca.exp(-z))
-    d1 = epsilon * sp ** (epsilon - 1) * sig
-    d2 = kappa * epsilon * ((epsilon - 1) * sp ** (epsilon - 2) * sig**2
-                            + sp ** (epsilon - 1) * sig * (1 - sig))
-    return d1, d2
+class LinearisationLadder:
+    """The linearisation compiled for several LiDAR capacities (points per region slot).
+
+    A scan uses the smallest capacity that holds it. Padding contributes exactly 0, so every
+    capacity gives the same QP; the small ones skip the padding's arithmetic. With 16 points
+    in view the capacity-16 linearisation takes about a fifth of the time of the capacity-120
+    one, and with at most one point per region (nothing in range, say) the capacity-1 one
+    about half of the capacity-16 one. The cost grows by about 3 µs per point of capacity
+    (2 slots × 35 stages), so the ladder is fine where scans of a paper mission fall (half see
+    nothing, a third hold 17-48 points).
+
+    Parameters
+    ----------
+    ocp : the problem; its ``scan.capacity`` is the largest rung.
+    capacities : the smaller rungs.
+    compile : build C (cached, :class:`~paper_repro._native.NativeFunction`); without it, or
+        without a compiler, one rung evaluated in CasADi's virtual machine.
+
+    Attributes
+    ----------
+    rungs : [(scan layout, function)], by increasing capacity.  native : compiled or not.
+    """
+
+    def __init__(self, ocp: OCP, capacities=(), compile: bool = True):
+        top = ocp.scan.capacity
+        fn = linearisation(ocp)
+        self.sizes = [fn.nnz_out(i) for i in range(fn.n_out())]
+        self.native = bool(compile and compiler() is not None)
+        if not self.native:
+            self.rungs = [(ocp.scan, fn)]
+        else:
+            self.rungs = []
+            for cap in sorted({c for c in capacities if c < top} | {top}):
+                scan = ocp.scan.with_capacity(cap)
+                self.rungs.append(
+                    (scan, NativeFunction(fn if cap == top else linearisation(ocp, scan))))
+        self._empty = {}  # capacity -> packed parameters of a scan that sees nothing
+
+    def for_scan(self, visible):
+        """``(function, scan layout)`` of the smallest capacity that holds the scan."""
+        need = max((len(v) for v in visible), default=0)
+        for scan, fn in self.rungs:
+            if need <= scan.capacity:
+                return fn, scan
+        return self.rungs[-1][1], self.rungs[-1][0]  # the scan keeps the nearest points
+
+    def pack(self, visible, position, scan: ScanLayout) -> np.ndarray:
+        """:meth:`ScanLayout.pack`, except that the packing of an empty scan, the same wherever
+        the vehicle is, is made once per capacity (empty scans are common: nothing in range)."""
+        if any(len(v) for v in visible):
+            return scan.pack(visible, position)
+        if scan.capacity not in self._empty:
+            self._empty[scan.capacity] = scan.pack((), position)
+        return self._empty[scan.capacity]
+
+    @staticmethod
+    def evaluate(fn, x0, X, U, a, params):
+        """Every stage's QP blocks at this iterate: [h, q, j, gap, eq] (see
+        :func:`linearisation`); ``X`` (N, n_x), ``U`` (N, n_u), ``a`` (n_a,) at every stage."""
+        if isinstance(fn, NativeFunction):
+            ins = fn.inputs
+            ins[0][:, 0], ins[1][:], ins[2][:], ins[3][:], ins[4][:, 0] = \
+                x0, X.T, U.T, a[:, None], params
+            fn()
+            return fn.outputs
+        A = np.tile(a[:, None], (1, X.shape[0] + 1))
+        return [np.asarray(v).ravel() for v in fn(x0, X.T, U.T, A, params)]
+
+
+# --- the QP's layout ---------------------------------------------------------------------------
+
+class QPLayout:
+    """Where every variable, block and bound of the stage QP sits. Pure index arithmetic.
+
+    The variable vector w stacks stage by stage: z_0 = a_0, u_0; then z_j = (x_j, a_j, s_j),
+    u_j for j = 1..N−1; then z_N = (x_N, a_N, s_N). The constraints are the gap rows
+    z_{j+1} = [A_j B_j](z_j, u_j) + b_j of every stage and the ``nc`` terminal rows on z_N.
+
+    Parameters
+    ----------
+    horizon : N.  nx, nu : n_x, n_u.  na : size of a.  ns : region slots (carried β).
+    nc : terminal rows.
+    """
+
+    def __init__(self, horizon: int, nx: int, nu: int, na: int, ns: int, nc: int):
+        n = horizon
+        self.horizon, self.nx, self.nu, self.na, self.ns, self.nc = n, nx, nu, na, ns, nc
+        nz = nx + na + ns
+        self.nz = [na] + [nz] * n  # state size per stage (x_0 is known: only a_0)
+        self.sizes = [na + nu] + [nz + nu] * (n - 1) + [nz]
+        self.offsets = offsets = np.concatenate([[0], np.cumsum(self.sizes)])
+        self.nw = nw = int(offsets[-1])
+
+        # Hessian: dense diagonal blocks, stored by the linearisation one after the other,
+        # each in column-major order.
+        index = -np.ones((nw, nw), dtype=int)
+        k = 0
+        for j, s in enumerate(self.sizes):
+            o = offsets[j]
+            index[o:o + s, o:o + s] = np.arange(k, k + s * s).reshape(s, s, order="F")
+            k += s * s
+        self.hessian_entries = _entries(index)
+
+        # Constraints: gap rows of stage j: [A_j B_j] on stage j, −I on stage j+1; then the
+        # terminal rows C z_N = d on stage N. The sources index (j[:n_ab], −1s, j[n_ab:]).
+        rows = [nz] * n + [nc]
+        row_off = np.concatenate([[0], np.cumsum(rows)])
+        index = -np.ones((int(row_off[-1]), nw), dtype=int)
+        k = 0
+        for j in range(n):
+            r, s = row_off[j], self.sizes[j]
+            index[r:r + nz, offsets[j]:offsets[j] + s] = \
+                np.arange(k, k + nz * s).reshape(nz, s, order="F")
+            k += nz * s
+        self.n_ab = k  # entries of [A_j B_j] in the linearisation's j
+        for j in range(n):
+            r, o = row_off[j], offsets[j + 1]
+            index[r + np.arange(nz), o + np.arange(nz)] = k + np.arange(nz)
+        k += nz * n
+        r, o = row_off[n], offsets[n]
+        index[r:r + nc, o:o + nz] = np.arange(k, k + nc * nz).reshape(nc, nz, order="F")
+        self.constraint_entries = _entries(index)
+        self.n_gap_rows = nz * n
+
+        # Positions of x_1..x_N, u_0..u_{N−1} and a_0..a_N in w.
+        self.ix = np.array([offsets[j] + np.arange(nx) for j in range(1, n + 1)])
+        self.iu = np.array([offsets[j] + self.nz[j] + np.arange(nu) for j in range(n)])
+        self.ia = np.array([offsets[0] + np.arange(na)]
+                           + [offsets[j] + nx + np.arange(na) for j in range(1, n + 1)])
+
+    @classmethod
+    def of(cls, ocp: OCP) -> QPLayout:
+        """The layout of an OCP's stage QP."""
+        _, _, na, _ = _equilibrium_expressions(ocp)
+        nc = ocp.nx if ocp.equilibria is not None else 2 * ocp.nx
+        return cls(ocp.horizon, ocp.nx, ocp.nu, na, ocp.scan.slots, nc)
+
+    def bounds(self, ocp: OCP) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) of w: 𝒳 on x_1..x_N, 𝒰 on u, the equilibrium box on a_0 (the other
+        a_j equal it), nothing on the carried β. Also sets :attr:`bounded`, the indices of
+        the bounded entries (x, u and a_0: the steps that matter)."""
+        lb, ub = np.full(self.nw, -np.inf), np.full(self.nw, np.inf)
+        lb[self.ix], ub[self.ix] = ocp.state_bounds
+        lb[self.iu], ub[self.iu] = ocp.input_bounds
+        lb[self.ia[0]], ub[self.ia[0]] = _equilibrium_box(ocp)
+        self.bounded = np.flatnonzero(np.isfinite(lb))
+        return lb, ub
+
+    def parameters_of(self, ocp: OCP, x_a, u_a) -> np.ndarray:
+        """a of an artificial equilibrium (x_a, u_a): (n_a,) array."""
+        e = ocp.equilibria
+        if e is not None:
+            return np.asarray(e.of_state(x_a), float).copy()
+        return np.concatenate([x_a, u_a]).astype(float)
+
+    def scatter(self, X, U, a) -> np.ndarray:
+        """w of the iterate: X (N, n_x) = x_1..x_N, U (N, n_u), a (n_a,) at every stage; the
+        carried β are 0 (they are recomputed, never stored)."""
+        w = np.zeros(self.nw)
+        w[self.ix] = X
+        w[self.iu] = U
+        w[self.ia] = a
+        return w
+
+    def gather(self, dw):
+        """(ΔX (N, n_x), ΔU (N, n_u), Δa (n_a,)) of a step of w."""
+        return dw[self.ix], dw[self.iu], dw[self.ia[0]]
+
+    def dense(self, h, j):
+        """The dense Hessian H (n_w, n_w) and constraint matrix (rows, n_w) of the QP, from the
+        linearisation's ``h`` and ``j``; the constraints are then
+        A w = −(gap, eq)."""
+        (hr, hc, hs), (ar, ac, asrc) = self.hessian_entries, self.constraint_entries
+        H = np.zeros((self.nw, self.nw))
+        H[hr, hc] = np.asarray(h)[hs]
+        src = self._constraint_source(j)
+        A = np.zeros((self.n_gap_rows + self.nc, self.nw))
+        A[ar, ac] = src[asrc]
+        return H, A
+
+    def _constraint_source(self, j):
+        j = np.asarray(j)
+        return np.concatenate([j[:self.n_ab], -np.ones(self.n_gap_rows), j[self.n_ab:]])
+
+
+def _entries(index: np.ndarray):
+    """(rows, cols, sources) of the entries ≥ 0 of ``index``, in column-major order."""
+    cols, rows = np.nonzero(index.T >= 0)
+    return rows, cols, index[rows, cols]
+
+
+# --- the QP backends ---------------------------------------------------------------------------
+
+class QPChain:
+    """The QP backends in order: the warm-started Riccati solver, then HPIPM.
+
+    Parameters
+    ----------
+    layout : the QP's :class:`QPLayout`.
+    qp_solver : ``"riccati"`` (Riccati first, HPIPM when it fails) or ``"hpipm"`` (HPIPM only).
+
+    Attributes
+    ----------
+    counts : QPs solved by ``riccati``, by ``hpipm`` (chosen or as fallback), and ``failed``.
+    """
+
+    def __init__(self, layout: QPLayout, qp_solver: str = "riccati"):
+        self.layout = lay = layout
+        n = lay.horizon
+        self.riccati = (StageQP(lay.nz, [lay.nu] * n, lay.nc)
+                        if qp_solver == "riccati" else None)
+        (hr, hc, hs), (ar, ac, asrc) = lay.hessian_entries, lay.constraint_entries
+        h_sp = ca.Sparsity.triplet(lay.nw, lay.nw, hr.tolist(), hc.tolist())
+        a_sp = ca.Sparsity.triplet(lay.n_gap_rows + lay.nc, lay.nw, ar.tolist(), ac.tolist())
+        self.hpipm = ca.conic("rti_qp", "hpipm", {"h": h_sp, "a": a_sp},
+                              {"N": n, "nx": lay.nz, "nu": [lay.nu] * n + [0],
+                               "ng": [0] * n + [lay.nc],
+                               # 'robust' converges where 'speed' stalls on this problem;
+                               # bounds of ±1e4 on the free variables keep HPIPM's
+                               # tolerances relative.
+                               "hpipm": {"iter_max": 100, "mode": "robust"}, "inf": 1e4,
+                               "error_on_fail": False, "print_problem": False})
+        # Blocks of the linearisation -> HPIPM's sparse H and A (a fixed permutation).
+        h_src = ca.MX.sym("h", int(np.sum(np.square(lay.sizes))))
+        j_src = ca.MX.sym("j", lay.n_ab + lay.nc * lay.nz[-1])
+        a_src = ca.vertcat(j_src[:lay.n_ab], ca.DM(-np.ones(lay.n_gap_rows)), j_src[lay.n_ab:])
+        self._matrices = ca.Function("rti_qp_matrices", [h_src, j_src],
+                                     [ca.MX(h_sp, h_src[hs.tolist()]),
+                                      ca.MX(a_sp, a_src[asrc.tolist()])])
+        self.counts = {"riccati": 0, "hpipm": 0, "failed": 0}
+
+    def solve(self, h, q, j, gap, eq, lb, ub) -> np.ndarray | None:
+        """The step Δw of the QP min ½ΔwᵀHΔw + qᵀΔw s.t. the linearised gaps and terminal rows,
+        lb ≤ Δw ≤ ub; ``None`` when no backend solves it."""
+        n_ab = self.layout.n_ab
+        dw = None
+        if self.riccati is not None:
+            res = self.riccati.solve(h, q, j[:n_ab], gap, j[n_ab:], -eq, lb, ub)
+            if res.success:
+                dw = res.z
+                self.counts["riccati"] += 1
+        if dw is None:
+            dw = self._solve_hpipm(h, q, j, gap, eq, lb, ub)
+        if dw is None or not np.isfinite(dw).all():
+            self.counts["failed"] += 1
+            return None
+        return dw
+
+    def reset(self) -> None:
+        """Forget the Riccati solver's active set and multipliers (``counts`` keep counting)."""
+        if self.riccati is not None:
+            self.riccati.reset()
+
+    def _solve_hpipm(self, h, q, j, gap, eq, lb, ub):
+        """The QP by HPIPM; its active set then seeds the Riccati solver's next call."""
+        hmat, amat = self._matrices(h, j)
+        rhs = -np.concatenate([gap, eq])
+        sol = self.hpipm(h=hmat, g=q, a=amat, lba=rhs, uba=rhs, lbx=lb, ubx=ub)
+        if not self.hpipm.stats().get("success", False):
+            return None
+        self.counts["hpipm"] += 1
+        dw = np.asarray(sol["x"]).ravel()
+        if self.riccati is not None:
+            self.riccati.seed(dw, lb, ub, np.asarray(sol["lam_x"]).ravel())
+        return dw
+
+
+# --- the artificial equilibrium ----------------------------------------------------------------
+
+def _equilibrium_expressions(ocp: OCP):
+    """``(x_of, u_of, n_a, at_rest)``: symbolic x_a(a), u_a(a), the size of a, and the rows that
+    make (x_a, u_a) an equilibrium (none with a parametrisation; x_a − f(x_a, u_a) without)."""
+    e = ocp.equilibria
+    if e is not None:
+        return e.state, e.input, e.size, lambda a: ca.SX(0, 1)
+    nx = ocp.nx
+
+    def x_of(a):
+        return a[:nx]
+
+    def u_of(a):
+        return a[nx:]
+
+    return x_of, u_of, nx + ocp.nu, lambda a: x_of(a) - ocp.f(x_of(a), u_of(a))
+
+
+def _equilibrium_box(ocp: OCP) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of a: the parametrisation's box, or λ(𝒳 × 𝒰) on (x_a, u_a)."""
+    e = ocp.equilibria
+    if e is not None:
+        return np.asarray(e.lower, float), np.asarray(e.upper, float)
+    xal, xau, ual, uau = ocp.equilibrium_bounds
+    return np.concatenate([xal, ual]), np.concatenate([xau, uau])
+
+
+def _equilibrium_maps(ocp: OCP):
+    """Numeric a -> (x_a, u_a)."""
+    e = ocp.equilibria
+    if e is None:
+        nx = ocp.nx
+        return lambda a: (a[:nx].copy(), a[nx:].copy())
+    a = ca.SX.sym("a", e.size)
+    fn = ca.Function("equilibrium", [a], [e.state(a), e.input(a)])
+    return lambda a: tuple(np.asarray(v, float).ravel() for v in fn(a))

@@ -22,8 +22,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .config import Config
+from .controllers import make_controller
 from .model import N_INPUTS, N_STATES, equilibrium
-from .nmpc import NMPCSolution, TrackingNMPC, make_controller
+from .ocp import Controller, NMPCSolution
 from .plant import Plant
 from .safety import SetupHazardWarning, check_setup, setup_hazards
 from .scene import Lidar, Scene, make_scene
@@ -172,7 +173,7 @@ class SimulationResult:
                    outcome=payload["outcome"], scene=scene, **arrays)
 
 
-def simulate(config: Config | None = None, controller: TrackingNMPC | None = None,
+def simulate(config: Config | None = None, controller: Controller | None = None,
              max_steps: int | None = None, progress: bool | None = None,
              scene: Scene | None = None, faults: Faults | None = None) -> SimulationResult:
     """Fly the configured scenario in closed loop.

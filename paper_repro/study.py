@@ -456,7 +456,7 @@ def _controller(key: str):
     passage a few, so each worker keeps the last few it built; ``simulate`` resets a controller
     before every flight, so reuse cannot change a trajectory.
     """
-    from .nmpc import make_controller
+    from .controllers import make_controller
 
     return make_controller(Config.from_dict(json.loads(key)))
 

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from paper_repro import Config, NMPCParams, SimulationParams, make_scene
+from paper_repro.controllers import make_controller
 from paper_repro.metrics import COLLISION_CLEARANCE, summary_row
-from paper_repro.nmpc import make_controller
 from paper_repro.safety import SetupHazardWarning
 from paper_repro.scene import Box, Region, Scene
 from paper_repro.simulation import Faults, SimulationResult, simulate

@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 from paper_repro import Config, DistanceParams, Lidar, NMPCParams, SimulationParams, make_scene
+from paper_repro.controllers import make_controller
+from paper_repro.metrics import COLLISION_CLEARANCE
 from paper_repro.model import equilibrium, rk4_discretisation
-from paper_repro.nmpc import TrackingNMPC, make_controller, pack_scan
+from paper_repro.nmpc import TrackingNMPC
 from paper_repro.rti import RealTimeNMPC
 from paper_repro.simulation import simulate
 
@@ -37,14 +39,16 @@ def test_make_controller_follows_the_config():
         NMPCParams(solver="acados")
 
 
-def test_converged_sqp_reaches_the_ipopt_optimum(reference, scene):
+@pytest.mark.parametrize("metric", ["smooth", "euclidean"])
+def test_converged_sqp_reaches_the_ipopt_optimum(reference, scene, metric):
     """Iterated to convergence, the Gauss-Newton SQP solves the same OCP: same optimum."""
-    fast = RealTimeNMPC(_config(), max_iter=40, step_tol=1e-10)
+    fast = RealTimeNMPC(_config(metric), max_iter=40, step_tol=1e-10)
+    ipopt = reference if metric == "smooth" else TrackingNMPC(_config(metric, "reference"))
     x0, _ = equilibrium([-18.3, 0.2, 2.0])
     x0[6] = 0.2  # moving towards the region
     visible = Lidar(scene.clouds).scan(x0[:3])
     assert sum(len(v) for v in visible) > 0
-    ref = reference.solve(x0, scene.targets[0], visible)
+    ref = ipopt.solve(x0, scene.targets[0], visible)
     sol = fast.solve(x0, scene.targets[0], visible)
     assert ref.success and sol.success and sol.status == "converged"
     np.testing.assert_allclose(sol.x_a, ref.x_a, atol=1e-5)
@@ -62,6 +66,7 @@ def test_converged_sqp_reaches_the_ipopt_optimum(reference, scene):
     assert np.all(np.abs(sol.x[1:, 9:]) <= np.pi / 2 + 1e-8)
 
 
+@pytest.mark.slow
 def test_fast_path_tracks_the_reference_in_closed_loop(reference, scene):
     """A short closed loop along the corner: the real-time iteration stays on the reference
     trajectory (a tolerance on states, never on time)."""
@@ -98,7 +103,7 @@ def test_when_the_riccati_solver_gives_up_hpipm_takes_over(scene):
     """With a single EQP allowed, the cold first QP (rate bounds binding, none guessed) is
     left to HPIPM, whose active set then seeds the Riccati solver: same trajectory."""
     ctl = make_controller(_qp_config("riccati"))
-    ctl._riccati.max_outer = 1
+    ctl.qp.riccati.max_outer = 1
     fast = simulate(_qp_config("riccati"), controller=ctl, max_steps=60, progress=False)
     ref = simulate(_qp_config("hpipm"), max_steps=60, progress=False)
     counts = fast.meta["qp_counts"]
@@ -131,20 +136,20 @@ def test_a_smaller_lidar_capacity_gives_the_same_step(scene, metric):
     assert 0 < max(counts) <= 16
     ladder = RealTimeNMPC(_config(metric))
     full = RealTimeNMPC(_config(metric), capacities=())
-    assert [cap for cap, _, _ in ladder._lins] == [1, 8, 16, 24, 32, 48]
+    assert [scan.capacity for scan, _ in ladder.ladder.rungs] == [1, 8, 16, 24, 32, 48]
     fitting = min(c for c in (1, 8, 16, 24, 32, 48) if c >= max(counts))
-    assert ladder._linearisation_for(visible)[1].nmpc.points_per_region == fitting
+    assert ladder.ladder.for_scan(visible)[1].capacity == fitting
     a = ladder.solve(x0, scene.targets[0], visible)
     b = full.solve(x0, scene.targets[0], visible)
     np.testing.assert_allclose(a.u, b.u, rtol=0, atol=1e-10)
     np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
     # Nothing in range: the capacity-1 linearisation, still the same step.
     empty = [np.empty((0, 3))]
-    lin_cfg = ladder._linearisation_for(empty)[1]
-    assert lin_cfg.nmpc.points_per_region == 1
+    scan = ladder.ladder.for_scan(empty)[1]
+    assert scan.capacity == 1
     # An empty scan is packed once: the same parameters wherever the UAV is.
-    np.testing.assert_array_equal(ladder._pack_scan(empty, x0 + 7.0, lin_cfg),
-                                  pack_scan(empty, x0[:3], lin_cfg))
+    np.testing.assert_array_equal(ladder.ladder.pack(empty, x0[:3] + 7.0, scan),
+                                  scan.pack(empty, x0[:3]))
     a = ladder.solve(x0, scene.targets[0], empty)
     b = full.solve(x0, scene.targets[0], empty)
     np.testing.assert_allclose(a.u, b.u, rtol=0, atol=1e-10)
@@ -153,10 +158,18 @@ def test_a_smaller_lidar_capacity_gives_the_same_step(scene, metric):
         RealTimeNMPC(_config(), capacities=(0,))
 
 
-def test_euclidean_metric_runs_on_the_fast_path():
-    result = simulate(_config("euclidean"), max_steps=120, progress=False)
-    assert result.steps == 120
-    assert np.all(np.isfinite(result.x))
+def test_euclidean_metric_flies_past_the_corner_on_the_fast_path(scene):
+    """The Euclidean baseline on the fast path, 1.6 m from the corner: every solve succeeds,
+    every input stays in 𝒰, and the UAV keeps clear of the cloud it sees."""
+    near = dataclasses.replace(scene, start=(-18.6, 0.0, 2.0))
+    cfg = _config("euclidean")
+    result = simulate(cfg, max_steps=300, progress=False, scene=near)
+    assert result.failures == 0 and result.visible_points.max() > 0
+    p = cfg.nmpc
+    assert np.all(result.u >= np.array(p.input_lower) - 1e-8)
+    assert np.all(result.u <= np.array(p.input_upper) + 1e-8)
+    assert result.clearance.min() > COLLISION_CLEARANCE
+    assert result.x[-1, 0] > near.start[0] + 0.05  # it moved on, towards the target
 
 
 def test_qp_failure_is_reported_not_raised(scene):

@@ -15,7 +15,7 @@ import pytest
 
 from paper_repro import Config, NMPCParams, random_scenes, runs
 from paper_repro import study as S
-from paper_repro.nmpc import make_controller
+from paper_repro.controllers import make_controller
 from paper_repro.simulation import SimulationResult, simulate
 
 TINY = Config(nmpc=NMPCParams(region_slots=1, points_per_region=64))

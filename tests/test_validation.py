@@ -9,7 +9,8 @@ import pytest
 
 from paper_repro import Config, DistanceParams, NMPCParams, SimulationParams, make_scene
 from paper_repro.config import BarrierParams, QuadrotorParams, SensorParams
-from paper_repro.nmpc import TrackingNMPC, check_visible, pack_scan
+from paper_repro.nmpc import TrackingNMPC
+from paper_repro.ocp import OCP, check_visible
 from paper_repro.rti import RealTimeNMPC
 from paper_repro.safety import check_setup, setup_hazards
 from paper_repro.scene import Box, Cylinder, Difference, Lidar, Region, Union
@@ -202,7 +203,7 @@ def test_pack_scan_accepts_one_form_only(visible, pattern):
     """A bare (k, 3) array is refused (it used to become k regions of one point each), and a
     (3, 2) region is refused rather than read as (2, 3)."""
     with pytest.raises(ValueError, match=pattern):
-        pack_scan(visible, np.zeros(3), _config("rti"))
+        OCP(_config("rti")).scan.pack(visible, np.zeros(3))
 
 
 def test_check_visible_accepts_the_documented_form_without_copying():

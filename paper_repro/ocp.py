@@ -1,0 +1,415 @@
+"""Problem (21), described once: the description that both solvers read.
+
+The optimal control problem (eq. 21: eq. 7 with the cost of eq. 20)::
+
+    min_{u, x_a, u_a}  Σ_{j<N} ‖x_j − x_a‖²_Q + ‖u_j − u_a‖²_R + ‖y_a − y_t‖²_T
+                       + μ Σ_i ( F(g_a,i) + Σ_{j=0}^{N} F(g_j,i) )
+    s.t.  x_0 = x,  x_{j+1} = f(x_j, u_j),  (x_j, u_j) ∈ 𝒳 × 𝒰,
+          x_a = f(x_a, u_a),  (x_a, u_a) ∈ λ(𝒳 × 𝒰),  x_N = x_a
+
+with y_j = h(x_j), y_a = h(x_a), β = D − d_min (eq. 17) for each region 𝒪_i in view,
+g_j = c·β(y_j) − β(y_{j+1}) (eq. 18; c = 1 − δ as printed, or c = δ as in Definition 1, see
+:class:`~paper_repro.config.BarrierParams`), y_{N+1} = y_a (the artificial equilibrium is where
+the prediction rests, so g_a = c·β(y_a) − β(y_a)), and F = (1/κ)[ln(1 + e^{κg})]^ε (eq. 19).
+
+:class:`OCP` holds every part of it: the model (discrete prediction f, output h, bounds, the
+equilibrium parametrisation), the weights, the barrier violation g, the penalty F and its
+derivatives, and the layout of the LiDAR scan (:class:`ScanLayout`). As acados keeps
+``AcadosOcp`` apart from the solvers that read it, the IPOPT transcription
+(:class:`paper_repro.nmpc.TrackingNMPC`) and the real-time solver
+(:class:`paper_repro.rti.RealTimeNMPC`) both build from an ``OCP`` and write no term of their
+own. :class:`NMPCSolution` and the :class:`Controller` protocol are what every solver returns
+and offers; :func:`paper_repro.controllers.make_controller` picks one.
+
+Import graph: ``config → vehicle → model → ocp → {nmpc, rti} → controllers``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import casadi as ca
+import numpy as np
+
+from . import distance as dist
+from .config import Config, relaxed_box
+from .model import quadrotor_model
+from .vehicle import VehicleModel, rk4
+
+PAD_LOG_WEIGHT = -1e30
+_FAR_AWAY = 1e3  # coordinate of the single dummy point of an inactive slot (its F is exactly 0)
+
+
+# --- the problem -------------------------------------------------------------------------------
+
+class OCP:
+    """Problem (21) for one vehicle and one configuration.
+
+    Parameters
+    ----------
+    config : uses its ``distance``, ``barrier`` and ``nmpc`` parts (and ``quadrotor`` when
+        ``model`` is omitted). The weights ``nmpc.q``, ``nmpc.r``, ``nmpc.t`` must have n_x,
+        n_u and p entries.
+    model : the vehicle (:class:`~paper_repro.vehicle.VehicleModel`); the quadrotor of
+        ``config`` by default, whose 𝒳 × 𝒰 are ``config.nmpc``'s bounds.
+
+    Attributes
+    ----------
+    f : CasADi function x_{j+1} = f(x_j, u_j): RK4 over ``nmpc.prediction_step`` (eq. 1).
+    h : CasADi function y = h(x).
+    nx, nu, ny : n_x, n_u, p.  horizon : N.
+    state_bounds, input_bounds : (lower, upper) of 𝒳 and 𝒰, (n_x,) and (n_u,) arrays.
+    equilibrium_bounds : (x_a lower, x_a upper, u_a lower, u_a upper) of λ(𝒳 × 𝒰).
+    scan : :class:`ScanLayout`, the LiDAR scan as parameters.
+    """
+
+    def __init__(self, config: Config | None = None, model: VehicleModel | None = None):
+        self.config = cfg = config or Config()
+        self.model = model = model or quadrotor_model(cfg)
+        p, b = cfg.nmpc, cfg.barrier
+        self.nx, self.nu, self.ny = model.nx, model.nu, model.ny
+        for name, n, what in (("q", self.nx, "n_x"), ("r", self.nu, "n_u"),
+                              ("t", self.ny, "p")):
+            if len(getattr(p, name)) != n:
+                raise ValueError(f"nmpc.{name} must have {what} = {n} entries for the "
+                                 f"{model.name} model, got {len(getattr(p, name))}")
+        self.horizon = p.horizon
+        self.f = rk4(model.dynamics, p.prediction_step)
+        self.h = model.output
+        self._selected = _selected_states(model.output)
+        self.equilibria = model.equilibria
+        self.state_bounds = (np.asarray(model.state_lower, float),
+                             np.asarray(model.state_upper, float))
+        self.input_bounds = (np.asarray(model.input_lower, float),
+                             np.asarray(model.input_upper, float))
+        self.equilibrium_bounds = (*relaxed_box(*self.state_bounds, p.lam),
+                                   *relaxed_box(*self.input_bounds, p.lam))
+        self._sqrt_weights = tuple(np.sqrt(np.asarray(v, float)) for v in (p.q, p.r, p.t))
+        self.decay, self.mu = b.decay, b.mu
+        self.kappa, self.epsilon = b.kappa, b.epsilon
+        d = cfg.distance
+        self.scan = ScanLayout(d.metric, d.eta, d.sigma, b.d_min, p.region_slots,
+                               p.points_per_region, self.ny)
+
+    # Cost terms, as residuals r whose squared norm is the term: the Gauss-Newton solver needs
+    # the residual, the IPOPT transcription its square.
+
+    def tracking_residual(self, x, u, x_a, u_a):
+        """r_j with ‖r_j‖² = ‖x_j − x_a‖²_Q + ‖u_j − u_a‖²_R (the stage cost of eq. 20)."""
+        sq, sr, _ = self._sqrt_weights
+        return ca.vertcat(sq * (x - x_a), sr * (u - u_a))
+
+    def offset_residual(self, y_a, y_t):
+        """r with ‖r‖² = ‖y_a − y_t‖²_T (the offset cost of eq. 20)."""
+        return self._sqrt_weights[2] * (y_a - y_t)
+
+    def violation(self, beta, beta_next):
+        """g = c·β(y_j) − β(y_{j+1}) (eq. 18): positive where the CBF condition is violated."""
+        return self.decay * beta - beta_next
+
+    def penalty(self, g):
+        """F = (1/κ)[ln(1 + e^{κg})]^ε (eq. 19), in the overflow-free form of the softplus."""
+        z = self.kappa * g
+        softplus = ca.fmax(z, 0) + ca.log1p(ca.exp(-ca.fabs(z)))
+        return softplus**self.epsilon / self.kappa
+
+    def penalty_derivatives(self, g):
+        """F'(g) and F''(g), in the same overflow-free form (tested against CasADi's AD of
+        :meth:`penalty`). The Gauss-Newton model of μ·F(g(v)) is μF''·∇g∇gᵀ, convex because F
+        is convex and increasing for ε ≥ 1."""
+        z = self.kappa * g
+        # sp is clamped away from 0 so that sp^(ε−2) stays finite where it underflows; there
+        # σ = 0 as well, so the products are exactly 0.
+        sp = ca.fmax(ca.fmax(z, 0) + ca.log1p(ca.exp(-ca.fabs(z))), 1e-300)
+        sig = 1.0 / (1.0 + ca.exp(-z))
+        eps = self.epsilon
+        d1 = eps * sp ** (eps - 1) * sig
+        d2 = self.kappa * eps * ((eps - 1) * sp ** (eps - 2) * sig**2
+                                 + sp ** (eps - 1) * sig * (1 - sig))
+        return d1, d2
+
+    def equilibrium_violation(self, beta_a):
+        """g_a = c·β(y_a) − β(y_a) = (c − 1)·β(y_a): eq. (18) at the artificial equilibrium,
+        where y_{j+1} = y_j = y_a (the term F(y_a) of the cost)."""
+        return (self.decay - 1.0) * beta_a
+
+    def violations(self, betas):
+        """Every g of one region along the horizon, from β(y_0), …, β(y_N), β(y_a).
+
+        Returns [g_0, …, g_N, g_a]: g_j pairs y_j with y_{j+1} (y_{N+1} = y_a) and g_a = (c − 1)·
+        β(y_a) is the term F(y_a) of the cost. The penalty of the region is μ Σ F(g).
+        """
+        gs = [self.violation(betas[j], betas[j + 1]) for j in range(len(betas) - 1)]
+        return gs + [self.equilibrium_violation(betas[-1])]
+
+    def output(self, x) -> np.ndarray:
+        """y = h(x) for a numeric state (n_x,): (p,) array, m. A plain index when h selects
+        states (the quadrotor's position), as it does on every step of the closed loop."""
+        if self._selected is not None:
+            return np.asarray(x, float)[self._selected]
+        return np.asarray(self.h(x), float).ravel()
+
+    # Guesses.
+
+    def rest(self, x0) -> NMPCSolution:
+        """The plan that rests where the vehicle is for the whole horizon (the first guess)."""
+        x_a, u_a = self.model.rest(x0)
+        n = self.horizon
+        return NMPCSolution(np.tile(u_a, (n, 1)), np.tile(x_a, (n + 1, 1)), x_a, u_a,
+                            True, "guess", 0, 0.0, np.nan)
+
+
+def _selected_states(h: ca.Function) -> np.ndarray | None:
+    """The indices i_k with h(x)_k = x_{i_k}, when h only selects states; else ``None``."""
+    x = ca.SX.sym("x", h.size1_in(0))
+    y = h(x)
+    jac = ca.evalf(ca.substitute(ca.jacobian(y, x), x, ca.DM.zeros(x.shape)))
+    if not ca.depends_on(ca.jacobian(y, x), x) and float(ca.norm_inf(
+            ca.evalf(ca.substitute(y, x, ca.DM.zeros(x.shape))))) == 0.0:
+        jac = np.asarray(jac)
+        if np.all((jac == 0) | (jac == 1)) and np.all(jac.sum(axis=1) == 1):
+            return np.argmax(jac, axis=1)
+    return None
+
+
+# --- the LiDAR scan as parameters --------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ScanLayout:
+    """How a LiDAR scan enters the problem: ``slots`` region slots of ``capacity`` points.
+
+    Per slot the parameters are (points (capacity, p) column-major, ln W (capacity,), ln V,
+    active) for the smooth metric and (points, mask (capacity,), active) for the Euclidean
+    one. Unused point slots have ln W = −1e30 (mask 0), so their terms are exactly zero; an
+    unused region slot holds one dummy point and active = 0, which multiplies its penalty. W
+    and V are computed from the visible points (the vehicle only knows what is in range).
+
+    Attributes
+    ----------
+    metric : ``"smooth"`` or ``"euclidean"``.  eta, sigma : η, σ, m.  d_min : m².
+    slots : region slots.  capacity : points per slot.  dim : p, 3 or 2.
+    """
+
+    metric: str
+    eta: float
+    sigma: float
+    d_min: float
+    slots: int
+    capacity: int
+    dim: int = 3
+
+    @property
+    def size(self) -> int:
+        """Number of parameters of a whole scan."""
+        per_point = self.dim + 1
+        return self.slots * (self.capacity * per_point + (2 if self.metric == "smooth" else 1))
+
+    def with_capacity(self, capacity: int) -> ScanLayout:
+        return dataclasses.replace(self, capacity=capacity)
+
+    def pack(self, visible: Sequence[np.ndarray], position) -> np.ndarray:
+        """Pack a LiDAR scan into the parameter layout.
+
+        Parameters
+        ----------
+        visible : per region, the (k_i, p) visible points (see :func:`check_visible`); regions
+            with none are skipped.
+        position : (p,) position of the vehicle, m. If more regions are visible than there are
+            slots, the nearest regions are kept; if a region shows more points than a slot
+            holds, the nearest points are kept.
+
+        Returns
+        -------
+        (size,) array.
+        """
+        slots, cap, dim = self.slots, self.capacity, self.dim
+        ref = as_vector("position", position, dim)
+        seen = [v for v in check_visible(visible, dim) if len(v)]
+        sq = [np.sum((v - ref) ** 2, axis=1) for v in seen]
+        if len(seen) > slots:
+            order = np.argsort([s.min() for s in sq])[:slots]
+            seen, sq = [seen[i] for i in order], [sq[i] for i in order]
+        blocks = []
+        for slot in range(slots):
+            pts = np.full((cap, dim), _FAR_AWAY)
+            log_w = np.full(cap, PAD_LOG_WEIGHT)
+            mask = np.zeros(cap)
+            if slot < len(seen):
+                cloud = seen[slot]
+                weights = dist.CloudWeights.from_cloud(cloud, self.sigma)
+                keep = np.arange(len(cloud))
+                if len(cloud) > cap:
+                    keep = np.sort(np.argsort(sq[slot])[:cap])
+                pts[: len(keep)] = cloud[keep]
+                log_w[: len(keep)] = weights.log_weights[keep]
+                mask[: len(keep)] = 1.0
+                log_v, active = weights.log_volume, 1.0
+            else:
+                log_w[0], mask[0] = 0.0, 1.0
+                log_v, active = 0.0, 0.0
+            if self.metric == "smooth":
+                blocks.append(np.concatenate([pts.ravel(order="F"), log_w, [log_v, active]]))
+            else:
+                blocks.append(np.concatenate([pts.ravel(order="F"), mask, [active]]))
+        return np.concatenate(blocks)
+
+    def region_barrier(self):
+        """Symbolic parameters of one region slot and β(y) = D(y) − d_min (eq. 17).
+
+        Returns ``(params, beta)``: ``params`` is the slot's parameter column (its last entry
+        is the ``active`` flag) and ``beta(y)`` the CasADi expression for a (p, 1) output y.
+        """
+        cap, dim = self.capacity, self.dim
+        pts = ca.SX.sym("points", cap, dim)
+        y = ca.SX.sym("y", dim)
+        active = ca.SX.sym("active")
+        if self.metric == "smooth":
+            log_w = ca.SX.sym("log_w", cap)
+            log_v = ca.SX.sym("log_v")
+            d = dist.smooth_distance_symbolic(y, pts, log_w, log_v, self.eta)
+            extra = [log_w, log_v]
+        else:
+            mask = ca.SX.sym("mask", cap)
+            d = dist.euclidean_distance_symbolic(y, pts, mask)
+            extra = [mask]
+        beta_fn = ca.Function("beta", [y, pts, *extra], [d - self.d_min])
+        params = ca.vertcat(ca.vec(pts), *extra, active)
+        return params, lambda yy: beta_fn(yy, pts, *extra)
+
+    def barriers(self):
+        """Every slot at once: ``(params, beta, active)`` with ``params`` the scan's parameter
+        column, ``beta(y)`` the (slots,) expression of β at output y and ``active`` the
+        (slots,) flags."""
+        slots = [self.region_barrier() for _ in range(self.slots)]
+        params = ca.vertcat(*[s[0] for s in slots])
+        active = ca.vertcat(*[s[0][-1] for s in slots])
+        return params, (lambda y: ca.vertcat(*[s[1](y) for s in slots])), active
+
+
+# --- what every solver returns and offers ------------------------------------------------------
+
+@dataclass
+class NMPCSolution:
+    """Result of one OCP solve.
+
+    Attributes
+    ----------
+    u : (N, n_u) planned inputs.  x : (N+1, n_x) predicted states.
+    x_a : (n_x,) artificial equilibrium state.  u_a : (n_u,) artificial equilibrium input.
+    success : bool, the solver reported convergence.  status : solver's return status.
+    iterations : int.  solve_time : s, wall time of the solver call.  cost : optimal value.
+    """
+
+    u: np.ndarray
+    x: np.ndarray
+    x_a: np.ndarray
+    u_a: np.ndarray
+    success: bool
+    status: str
+    iterations: int
+    solve_time: float
+    cost: float
+
+    def shifted(self) -> NMPCSolution:
+        """The plan one step later: drop the first stage and rest at the artificial equilibrium.
+
+        This is both the warm start of the next solve and the fallback plan after a failure.
+        """
+        u = np.vstack([self.u[1:], self.u_a[None, :]])
+        x = np.vstack([self.x[1:], self.x_a[None, :]])
+        return NMPCSolution(u, x, self.x_a.copy(), self.u_a.copy(), self.success, self.status,
+                            0, 0.0, self.cost)
+
+    def reanchored(self, x0, position: Sequence[int] = (0, 1, 2)) -> NMPCSolution:
+        """The same plan moved rigidly so that it starts at the position of ``x0``.
+
+        ``position`` : the indices of the states that are the position, along which the
+        dynamics are invariant (the quadrotor's first three). The OCP is invariant to
+        translations of position except through the target, the regions and the workspace
+        walls, which move slowly relative to one sampling period. In cruise the optimal plan
+        keeps its shape from one instant to the next (accelerate, then stop at x_a within the
+        horizon), so moving it, rather than shifting it in time, is the better starting point
+        for a single SQP iteration.
+        """
+        idx = list(position)
+        d = np.zeros_like(self.x_a)
+        d[idx] = np.asarray(x0, float)[idx] - self.x[0, idx]
+        return NMPCSolution(self.u.copy(), self.x + d, self.x_a + d, self.u_a.copy(),
+                            self.success, self.status, 0, 0.0, self.cost)
+
+
+class Controller(Protocol):
+    """What the closed loop needs of a solver of problem (21)."""
+
+    ocp: OCP
+    horizon: int
+
+    def solve(self, x0, target, visible: Sequence[np.ndarray] = (),
+              previous: NMPCSolution | None = None) -> NMPCSolution:
+        """Solve from state ``x0`` (n_x,) towards output set-point ``target`` (p,), m, with the
+        LiDAR scan ``visible`` (see :func:`check_visible`); ``previous`` warm-starts."""
+
+    def reset(self) -> None:
+        """Forget what is carried from one solve to the next (a new flight starts clean)."""
+
+    def hover_guess(self, x0) -> NMPCSolution:
+        """The plan that rests where the vehicle is (the guess without a previous plan)."""
+
+
+# --- the one accepted form of inputs -----------------------------------------------------------
+
+def check_visible(visible, dim: int = 3) -> tuple[np.ndarray, ...]:
+    """The one accepted form of a LiDAR scan, checked and never reshaped.
+
+    ``visible`` must be a list or tuple with one finite (k_i, p) array (or nested list) per
+    region, k_i ≥ 0, p = ``dim``. A bare array, even (k, p), is rejected: iterating over it
+    would make every point a region of its own. Returns the regions as float arrays (no copy
+    when they already are), in a tuple that later calls recognise as checked, so the check
+    costs a few microseconds once per solve. Raises ``ValueError`` naming ``visible[i]``.
+    """
+    if type(visible) is _CheckedScan and visible.dim == dim:
+        return visible
+    if not isinstance(visible, (list, tuple)):
+        shape = f" of shape {visible.shape}" if isinstance(visible, np.ndarray) else ""
+        raise ValueError(f"visible must be a list or tuple with one (k_i, {dim}) array per "
+                         f"region, got {type(visible).__name__}{shape}; wrap one region's "
+                         "points in a list: [points]")
+    regions = []
+    for i, v in enumerate(visible):
+        arr = v if type(v) is np.ndarray and v.dtype == np.float64 else _region_array(i, v)
+        if arr.ndim != 2 or arr.shape[1] != dim:
+            raise ValueError(f"visible[{i}] must be a (k, {dim}) array of points (k ≥ 0), got "
+                             f"shape {arr.shape}")
+        if not np.isfinite(arr).all():
+            raise ValueError(f"visible[{i}] must hold finite coordinates only (drop the "
+                             "non-finite returns before solving)")
+        regions.append(arr)
+    return _CheckedScan(regions, dim)
+
+
+class _CheckedScan(tuple):
+    """A scan that :func:`check_visible` has accepted (so it is not checked twice)."""
+
+    def __new__(cls, regions, dim: int):
+        scan = super().__new__(cls, regions)
+        scan.dim = dim
+        return scan
+
+
+def _region_array(i: int, value) -> np.ndarray:
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"visible[{i}] must be a (k, p) array of points, got "
+                         f"{type(value).__name__}") from None
+
+
+def as_vector(name: str, value, n: int) -> np.ndarray:
+    """``value`` as a finite float array of shape (n,), or a ``ValueError`` naming it."""
+    arr = np.asarray(value, dtype=float)
+    if arr.shape != (n,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be a finite array of shape ({n},), got {arr!r}")
+    return arr
