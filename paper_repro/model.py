@@ -74,21 +74,18 @@ def quadrotor_model(config: Config | None = None) -> VehicleModel:
     """The quadrotor as the NMPC sees it (:class:`~paper_repro.vehicle.VehicleModel`).
 
     Output y = position (3,). 𝒳 and 𝒰 are ``config.nmpc``'s bounds. Its equilibria are
-    parametrised exactly by a = (position, yaw) with hover thrust (see :func:`equilibrium`), a
-    bounded by the λ-relaxed box's position and yaw entries.
+    parametrised exactly by a = (position, yaw) with hover thrust (see :func:`equilibrium`).
     """
     cfg = config or Config()
     p = cfg.nmpc
     x = ca.SX.sym("x", N_STATES)
     a = ca.SX.sym("a", 4)
     hover = cfg.quadrotor.hover_thrust
-    xal, xau, _, _ = p.relaxed_bounds()
-    yaw_and_position = [0, 1, 2, 5]
+    position_and_yaw = [0, 1, 2, 5]
     equilibria = Equilibria(
         state=ca.Function("x_a", [a], [ca.vertcat(a[:3], 0, 0, a[3], ca.SX.zeros(6))]),
         input=ca.Function("u_a", [a], [ca.DM.ones(N_INPUTS) * hover]),
-        lower=tuple(xal[yaw_and_position]), upper=tuple(xau[yaw_and_position]),
-        of_state=lambda xs: np.asarray(xs, float)[yaw_and_position])
+        of_state=lambda xs: np.asarray(xs, float)[position_and_yaw])
     return VehicleModel(
         "quadrotor", symbolic_dynamics(cfg.quadrotor), ca.Function("h", [x], [x[:3]]),
         p.state_lower, p.state_upper, p.input_lower, p.input_upper, equilibria,

@@ -2,8 +2,10 @@
 
 :class:`TrackingNMPC` transcribes the :class:`~paper_repro.ocp.OCP` (the problem, its terms and
 its bounds are described there, once) into one NLP by multiple shooting: the variables are
-x_0..x_N, u_0..u_{N−1}, x_a and u_a, the equalities x_0 = x (as bounds), x_{j+1} = f(x_j, u_j),
-x_N = x_a and x_a = f(x_a, u_a), and IPOPT solves it with the exact Hessian. It is built once;
+x_0..x_N, u_0..u_{N−1} and the artificial equilibrium's a ((x_a, u_a) = E(a), see
+:meth:`~paper_repro.ocp.OCP.equilibrium`: the quadrotor's position and yaw), the equalities
+x_0 = x (as bounds), x_{j+1} = f(x_j, u_j), x_N = x_a, and x_a = f(x_a, u_a) for a model
+without an equilibrium parametrisation; IPOPT solves it with the exact Hessian. It is built once;
 :meth:`TrackingNMPC.solve` is the hot path. What the LiDAR sees enters as parameters
 (:class:`~paper_repro.ocp.ScanLayout`).
 """
@@ -72,7 +74,7 @@ class TrackingNMPC:
         visible = check_visible(visible, ocp.ny)
         params = np.concatenate([target, self.obstacle_parameters(visible, ocp.output(x0))])
         guess = previous.shifted() if previous is not None else self.hover_guess(x0)
-        w0 = self._pack(guess.x, guess.u, guess.x_a, guess.u_a)
+        w0 = self._pack(guess.x, guess.u, self.ocp.parameters_of(guess.x_a, guess.u_a))
         w0[self._ix[0]] = x0
         lbw, ubw = self._lbw.copy(), self._ubw.copy()
         lbw[self._ix[0]] = x0
@@ -82,7 +84,8 @@ class TrackingNMPC:
         elapsed = time.perf_counter() - start
         stats = self._solver.stats()
         w = np.asarray(sol["x"]).ravel()
-        x, u, x_a, u_a = self._unpack(w)
+        x, u, a = self._unpack(w)
+        x_a, u_a = self.ocp.equilibrium_of(a)
         status = str(stats.get("return_status", "unknown"))
         success = bool(stats.get("success", False)) or status in _SUCCESS_STATUSES
         success = success and bool(np.all(np.isfinite(w)))
@@ -110,8 +113,8 @@ class TrackingNMPC:
 
         X = ca.SX.sym("X", nx, n + 1)
         U = ca.SX.sym("U", nu, n)
-        xa = ca.SX.sym("x_a", nx)
-        ua = ca.SX.sym("u_a", nu)
+        a = ca.SX.sym("a", ocp.na)
+        xa, ua = ocp.equilibrium(a)
         yt = ca.SX.sym("y_t", ocp.ny)
 
         cost = 0
@@ -122,7 +125,7 @@ class TrackingNMPC:
         ya = h(xa)
         cost += ca.sumsqr(ocp.offset_residual(ya, yt))
         constraints.append(X[:, n] - xa)
-        constraints.append(xa - f(xa, ua))
+        constraints.append(ocp.equilibrium_rows(a))
 
         scan, beta, active = ocp.scan.barriers()
         outputs = [h(X[:, j]) for j in range(n + 1)] + [ya]  # y_0..y_N, then y_{N+1} = y_a
@@ -131,7 +134,7 @@ class TrackingNMPC:
             gs = ocp.violations([b[i] for b in betas])
             cost += ocp.mu * active[i] * sum(ocp.penalty(g) for g in gs)
 
-        w = ca.vertcat(ca.vec(X), ca.vec(U), xa, ua)
+        w = ca.vertcat(ca.vec(X), ca.vec(U), a)
         params = ca.vertcat(yt, scan)
         nlp = {"x": w, "p": params, "f": cost, "g": ca.vertcat(*constraints)}
         opts = {"ipopt": {"print_level": 0, "max_iter": max_iter, "tol": tol,
@@ -145,19 +148,16 @@ class TrackingNMPC:
         off = nx * (n + 1)
         self._iu = idx[off: off + nu * n].reshape(n, nu)
         off += nu * n
-        self._ixa = idx[off: off + nx]
-        self._iua = idx[off + nx: off + nx + nu]
+        self._ia = idx[off: off + ocp.na]
         (xl, xu), (ul, uu) = ocp.state_bounds, ocp.input_bounds
-        xal, xau, ual, uau = ocp.equilibrium_bounds
         lbw, ubw = np.empty(w.shape[0]), np.empty(w.shape[0])
         lbw[self._ix], ubw[self._ix] = xl, xu
         lbw[self._iu], ubw[self._iu] = ul, uu
-        lbw[self._ixa], ubw[self._ixa] = xal, xau
-        lbw[self._iua], ubw[self._iua] = ual, uau
+        lbw[self._ia], ubw[self._ia] = ocp.equilibrium_box
         self._lbw, self._ubw = lbw, ubw
 
-    def _pack(self, x, u, x_a, u_a) -> np.ndarray:
-        return np.concatenate([np.asarray(x).ravel(), np.asarray(u).ravel(), x_a, u_a])
+    def _pack(self, x, u, a) -> np.ndarray:
+        return np.concatenate([np.asarray(x).ravel(), np.asarray(u).ravel(), a])
 
     def _unpack(self, w):
-        return w[self._ix], w[self._iu], w[self._ixa], w[self._iua]
+        return w[self._ix], w[self._iu], w[self._ia]

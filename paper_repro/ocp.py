@@ -81,6 +81,7 @@ class OCP:
         self.h = model.output
         self._selected = _selected_states(model.output)
         self.equilibria = model.equilibria
+        self._equilibrium_fn = None  # numeric a -> (x_a, u_a), built on first use
         self.state_bounds = (np.asarray(model.state_lower, float),
                              np.asarray(model.state_upper, float))
         self.input_bounds = (np.asarray(model.input_lower, float),
@@ -152,6 +153,60 @@ class OCP:
             return np.asarray(x, float)[self._selected]
         return np.asarray(self.h(x), float).ravel()
 
+    # The artificial equilibrium: a parametrisation (x_a, u_a) = E(a), read by both solvers.
+
+    @property
+    def na(self) -> int:
+        """n_a: the size of a (the parametrisation's, or n_x + n_u for a = (x_a, u_a))."""
+        e = self.equilibria
+        return e.size if e is not None else self.nx + self.nu
+
+    def equilibrium(self, a):
+        """Symbolic (x_a, u_a) of a: (state(a), input(a)), or a split into (x_a, u_a)."""
+        e = self.equilibria
+        if e is not None:
+            return e.state(a), e.input(a)
+        return a[:self.nx], a[self.nx:]
+
+    def equilibrium_rows(self, a):
+        """The equalities that make (x_a, u_a) an equilibrium: none with a parametrisation
+        (it holds by construction), x_a − f(x_a, u_a) = 0 without."""
+        if self.equilibria is not None:
+            return ca.SX(0, 1) if isinstance(a, ca.SX) else ca.MX(0, 1)
+        x_a, u_a = self.equilibrium(a)
+        return x_a - self.f(x_a, u_a)
+
+    @property
+    def equilibrium_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) of a: the parametrisation's box, or λ(𝒳 × 𝒰) on (x_a, u_a)."""
+        e = self.equilibria
+        xal, xau, ual, uau = self.equilibrium_bounds
+        if e is None:
+            return np.concatenate([xal, ual]), np.concatenate([xau, uau])
+        if e.lower is not None:
+            return np.asarray(e.lower, float), np.asarray(e.upper, float)
+        entries = _entries_of(e.state)
+        if entries is None:
+            raise ValueError(f"equilibria of the {self.model.name} model need lower and upper "
+                             "bounds on a: its a_k are not entries of x_a")
+        return xal[entries], xau[entries]
+
+    def parameters_of(self, x_a, u_a) -> np.ndarray:
+        """a of a numeric artificial equilibrium (x_a, u_a): (n_a,) array."""
+        e = self.equilibria
+        if e is not None:
+            return np.array(e.of_state(x_a), dtype=float)
+        return np.concatenate([x_a, u_a]).astype(float)
+
+    def equilibrium_of(self, a) -> tuple[np.ndarray, np.ndarray]:
+        """Numeric (x_a (n_x,), u_a (n_u,)) of a (n_a,)."""
+        if self.equilibria is None:
+            return a[:self.nx].copy(), a[self.nx:].copy()
+        if self._equilibrium_fn is None:
+            sym = ca.SX.sym("a", self.na)
+            self._equilibrium_fn = ca.Function("equilibrium", [sym], [*self.equilibrium(sym)])
+        return tuple(np.asarray(v, float).ravel() for v in self._equilibrium_fn(a))
+
     # Guesses.
 
     def rest(self, x0) -> NMPCSolution:
@@ -164,15 +219,35 @@ class OCP:
 
 def _selected_states(h: ca.Function) -> np.ndarray | None:
     """The indices i_k with h(x)_k = x_{i_k}, when h only selects states; else ``None``."""
-    x = ca.SX.sym("x", h.size1_in(0))
-    y = h(x)
-    jac = ca.evalf(ca.substitute(ca.jacobian(y, x), x, ca.DM.zeros(x.shape)))
-    if not ca.depends_on(ca.jacobian(y, x), x) and float(ca.norm_inf(
-            ca.evalf(ca.substitute(y, x, ca.DM.zeros(x.shape))))) == 0.0:
-        jac = np.asarray(jac)
-        if np.all((jac == 0) | (jac == 1)) and np.all(jac.sum(axis=1) == 1):
-            return np.argmax(jac, axis=1)
+    jac = _constant_jacobian(h)
+    if jac is not None and np.all(jac.sum(axis=1) == 1) and not _at_zero(h).any():
+        return np.argmax(jac, axis=1)
     return None
+
+
+def _entries_of(state: ca.Function) -> np.ndarray | None:
+    """The indices i_k with state(a)_{i_k} = a_k for every k (a is a selection of x_a's
+    entries, the rest constant); else ``None``."""
+    jac = _constant_jacobian(state)
+    if jac is not None and np.all(jac.sum(axis=0) == 1) and np.all(jac.sum(axis=1) <= 1):
+        entries = np.argmax(jac, axis=0)
+        if not _at_zero(state)[entries].any():
+            return entries
+    return None
+
+
+def _at_zero(fn: ca.Function) -> np.ndarray:
+    return np.asarray(fn(np.zeros(fn.size1_in(0))), float).ravel()
+
+
+def _constant_jacobian(fn: ca.Function) -> np.ndarray | None:
+    """∂fn/∂v when it is constant with entries 0 and 1 (fn linear, a selection plus constants)."""
+    v = ca.SX.sym("v", fn.size1_in(0))
+    jac = ca.jacobian(fn(v), v)
+    if ca.depends_on(jac, v):
+        return None
+    jac = np.asarray(ca.evalf(jac))
+    return jac if np.all((jac == 0) | (jac == 1)) else None
 
 
 # --- the LiDAR scan as parameters --------------------------------------------------------------

@@ -92,7 +92,6 @@ class RealTimeNMPC:
         self.qp_solver = qp_solver if self.ladder.native else "hpipm"
         self.qp = QPChain(self.layout, self.qp_solver)
         self._lbw, self._ubw = self.layout.bounds(ocp)
-        self._equilibrium = _equilibrium_maps(ocp)  # a -> (x_a, u_a), numeric
         self._position = list(ocp.model.position)
 
     @property
@@ -126,7 +125,7 @@ class RealTimeNMPC:
         X = np.array(guess.x, dtype=float)  # (N+1, n_x)
         X[0] = x0
         U = np.array(guess.u, dtype=float)
-        a = layout.parameters_of(ocp, guess.x_a, guess.u_a)
+        a = ocp.parameters_of(guess.x_a, guess.u_a)
 
         success, status, it = False, "iterated", 0
         for it in range(1, self.max_iter + 1):  # noqa: B007 - `it` is reported below
@@ -147,7 +146,7 @@ class RealTimeNMPC:
             success, status = True, "iterated"  # real-time iteration: the last iterate is used
         elapsed = time.perf_counter() - start
         finite = np.isfinite(X).all() and np.isfinite(U).all() and np.isfinite(a).all()
-        x_a, u_a = self._equilibrium(a)
+        x_a, u_a = ocp.equilibrium_of(a)
         return NMPCSolution(U, X, x_a, u_a, bool(success and finite), status, it, elapsed,
                             np.nan)
 
@@ -181,7 +180,7 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
     scan = scan or ocp.scan
     n, nx, nu, ns = ocp.horizon, ocp.nx, ocp.nu, scan.slots
     f, h = ocp.f, ocp.h
-    x_of, u_of, na, at_rest = _equilibrium_expressions(ocp)
+    na = ocp.na
 
     # Barrier of every region slot, as a function of y and the packed parameters.
     yt = ca.SX.sym("y_t", ocp.ny)
@@ -207,7 +206,8 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
     a = ca.SX.sym("a", na)
     u = ca.SX.sym("u", nu)
     v0 = ca.vertcat(a, u)
-    h0, q0 = gn(ocp.tracking_residual(x0, u, x_of(a), u_of(a)), [], v0)
+    x_a, u_a = ocp.equilibrium(a)
+    h0, q0 = gn(ocp.tracking_residual(x0, u, x_a, u_a), [], v0)
     phi0 = ca.vertcat(f(x0, u), a, beta(h(x0), params))
     stage0 = ca.Function("stage0", [x0, a, u, params],
                          [ca.vec(h0), q0, ca.vec(ca.jacobian(phi0, v0)), phi0])
@@ -218,7 +218,7 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
     vj = ca.vertcat(x, a, s, u)
     bj = beta(h(x), params)
     gj = [(ocp.violation(s[i], bj[i]), active[i]) for i in range(ns)]
-    hj, qj = gn(ocp.tracking_residual(x, u, x_of(a), u_of(a)), gj, vj)
+    hj, qj = gn(ocp.tracking_residual(x, u, x_a, u_a), gj, vj)
     phij = ca.vertcat(f(x, u), a, bj)
     x_prev = ca.SX.sym("x_prev", nx)
     inner = ca.Function("inner", [x, a, s, u, params],
@@ -229,7 +229,7 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
     # Stage N: v = (x, a, s); cost T‖y_a − y_t‖², the last barrier terms; x_N = x_a (and
     # x_a = f(x_a, u_a) without a parametrisation).
     vn = ca.vertcat(x, a, s)
-    y_a = h(x_of(a))
+    y_a = h(x_a)
     bn, ba = beta(h(x), params), beta(y_a, params)
     gn_terms = []
     for i in range(ns):
@@ -237,7 +237,7 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
                      (ocp.violation(bn[i], ba[i]), active[i]),
                      (ocp.equilibrium_violation(ba[i]), active[i])]
     hn, qn = gn(ocp.offset_residual(y_a, yt), gn_terms, vn)
-    eq_res = ca.vertcat(x - x_of(a), at_rest(a))
+    eq_res = ca.vertcat(x - x_a, ocp.equilibrium_rows(a))
     inner_n = ca.Function("inner_n", [x, a, s, params],
                           [ca.vec(hn), qn, ca.vec(ca.jacobian(eq_res, vn)), eq_res])
     hN, qN, jN, eN = inner_n(x, a, beta(h(x_prev), params), params)
@@ -403,9 +403,9 @@ class QPLayout:
     @classmethod
     def of(cls, ocp: OCP) -> QPLayout:
         """The layout of an OCP's stage QP."""
-        _, _, na, _ = _equilibrium_expressions(ocp)
-        nc = ocp.nx if ocp.equilibria is not None else 2 * ocp.nx
-        return cls(ocp.horizon, ocp.nx, ocp.nu, na, ocp.scan.slots, nc)
+        a = ca.SX.sym("a", ocp.na)
+        nc = ocp.nx + ocp.equilibrium_rows(a).shape[0]
+        return cls(ocp.horizon, ocp.nx, ocp.nu, ocp.na, ocp.scan.slots, nc)
 
     def bounds(self, ocp: OCP) -> tuple[np.ndarray, np.ndarray]:
         """(lower, upper) of w: 𝒳 on x_1..x_N, 𝒰 on u, the equilibrium box on a_0 (the other
@@ -414,16 +414,9 @@ class QPLayout:
         lb, ub = np.full(self.nw, -np.inf), np.full(self.nw, np.inf)
         lb[self.ix], ub[self.ix] = ocp.state_bounds
         lb[self.iu], ub[self.iu] = ocp.input_bounds
-        lb[self.ia[0]], ub[self.ia[0]] = _equilibrium_box(ocp)
+        lb[self.ia[0]], ub[self.ia[0]] = ocp.equilibrium_box
         self.bounded = np.flatnonzero(np.isfinite(lb))
         return lb, ub
-
-    def parameters_of(self, ocp: OCP, x_a, u_a) -> np.ndarray:
-        """a of an artificial equilibrium (x_a, u_a): (n_a,) array."""
-        e = ocp.equilibria
-        if e is not None:
-            return np.asarray(e.of_state(x_a), float).copy()
-        return np.concatenate([x_a, u_a]).astype(float)
 
     def scatter(self, X, U, a) -> np.ndarray:
         """w of the iterate: X (N, n_x) = x_1..x_N, U (N, n_u), a (n_a,) at every stage; the
@@ -535,42 +528,3 @@ class QPChain:
         if self.riccati is not None:
             self.riccati.seed(dw, lb, ub, np.asarray(sol["lam_x"]).ravel())
         return dw
-
-
-# --- the artificial equilibrium ----------------------------------------------------------------
-
-def _equilibrium_expressions(ocp: OCP):
-    """``(x_of, u_of, n_a, at_rest)``: symbolic x_a(a), u_a(a), the size of a, and the rows that
-    make (x_a, u_a) an equilibrium (none with a parametrisation; x_a − f(x_a, u_a) without)."""
-    e = ocp.equilibria
-    if e is not None:
-        return e.state, e.input, e.size, lambda a: ca.SX(0, 1)
-    nx = ocp.nx
-
-    def x_of(a):
-        return a[:nx]
-
-    def u_of(a):
-        return a[nx:]
-
-    return x_of, u_of, nx + ocp.nu, lambda a: x_of(a) - ocp.f(x_of(a), u_of(a))
-
-
-def _equilibrium_box(ocp: OCP) -> tuple[np.ndarray, np.ndarray]:
-    """Bounds of a: the parametrisation's box, or λ(𝒳 × 𝒰) on (x_a, u_a)."""
-    e = ocp.equilibria
-    if e is not None:
-        return np.asarray(e.lower, float), np.asarray(e.upper, float)
-    xal, xau, ual, uau = ocp.equilibrium_bounds
-    return np.concatenate([xal, ual]), np.concatenate([xau, uau])
-
-
-def _equilibrium_maps(ocp: OCP):
-    """Numeric a -> (x_a, u_a)."""
-    e = ocp.equilibria
-    if e is None:
-        nx = ocp.nx
-        return lambda a: (a[:nx].copy(), a[nx:].copy())
-    a = ca.SX.sym("a", e.size)
-    fn = ca.Function("equilibrium", [a], [e.state(a), e.input(a)])
-    return lambda a: tuple(np.asarray(v, float).ravel() for v in fn(a))

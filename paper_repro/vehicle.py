@@ -43,17 +43,17 @@ class Equilibria:
     ----------
     state : CasADi function a (n_a,) -> x_a (n_x,).
     input : CasADi function a (n_a,) -> u_a (n_u,).
-    lower, upper : (n_a,) box on a. It must describe λ(𝒳 × 𝒰) on the equilibria (see
-        :meth:`paper_repro.ocp.OCP`); the quadrotor's comes from the relaxed box's position and
-        yaw entries.
     of_state : x (n_x,) -> a (n_a,), the equilibrium "at" a state (where a guess rests).
+    lower, upper : (n_a,) box on a, standing for (x_a, u_a) ∈ λ(𝒳 × 𝒰). ``None`` (the usual
+        case) when every a_k is an entry of x_a, as the quadrotor's position and yaw: the
+        :class:`~paper_repro.ocp.OCP` then bounds a_k by λ(𝒳) at that entry.
     """
 
     state: ca.Function
     input: ca.Function
-    lower: tuple[float, ...]
-    upper: tuple[float, ...]
     of_state: Callable[[np.ndarray], np.ndarray]
+    lower: tuple[float, ...] | None = None
+    upper: tuple[float, ...] | None = None
 
     @property
     def size(self) -> int:
@@ -73,8 +73,10 @@ class VehicleModel:
         of the clouds (and the one tracked to the target y_t), m.
     state_lower, state_upper : (n_x,) the box 𝒳.
     input_lower, input_upper : (n_u,) the box 𝒰.
-    equilibria : an exact parametrisation of the equilibrium set, or ``None`` (then the real-time
-        solver carries (x_a, u_a) and imposes x_a = f(x_a, u_a) at its last stage).
+    equilibria : an exact parametrisation of the equilibrium set, or ``None``: then the solvers
+        carry (x_a, u_a) and impose x_a = f(x_a, u_a). Those rows must be linearly independent
+        at the equilibria (as the quadrotor's are); where they are not, give a parametrisation
+        (the unicycle's v cos θ = v sin θ = 0 are not, and IPOPT fails on them).
     rest_input : (n_u,) the input of a guess that rests where the vehicle is, when there is no
         parametrisation (``None``: zero, clipped into 𝒰).
     position : indices of the states that are the vehicle's position, along which its dynamics
@@ -124,10 +126,11 @@ class VehicleModel:
             if e.state.size_out(0) != (nx, 1) or e.input.size_out(0) != (nu, 1) \
                     or e.input.size1_in(0) != na:
                 raise ValueError(f"equilibria must map a ({na},) to x_a ({nx},) and u_a ({nu},)")
-            if not (len(e.lower) == na == len(e.upper)
+            if (e.lower is None) != (e.upper is None) or e.lower is not None and not (
+                    len(e.lower) == na == len(e.upper)
                     and all(a < b for a, b in zip(e.lower, e.upper))):
                 raise ValueError(f"equilibria.lower < equilibria.upper must hold for all {na} "
-                                 "parameters")
+                                 "parameters (or both be None)")
         if not all(isinstance(i, int) and 0 <= i < nx for i in self.position):
             raise ValueError(f"position must hold state indices in [0, {nx}), got "
                              f"{self.position!r}")
