@@ -5,8 +5,8 @@ CBF-MPC work. The robot has state x = (p_x, p_y, θ) (m, m, rad), inputs u = (v,
 rad/s) and output y = (p_x, p_y) ∈ R², with ṗ_x = v cos θ, ṗ_y = v sin θ, θ̇ = ω. Its model
 (:func:`unicycle_model`) is a few lines of CasADi, with its equilibria parametrised as
 a = (p_x, p_y, θ), (v, ω) = 0: the rows x_a = f(x_a, u_a) would say v cos θ = v sin θ = 0, two
-dependent equations that IPOPT fails on. Everything else, problem (21), the smoothed distance, the CBF
-penalty and both solvers, is the quadrotor's code, unchanged.
+dependent equations that IPOPT fails on. Everything else, problem (21), the smoothed
+distance, the CBF penalty and both solvers, is the quadrotor's code, unchanged.
 
 The scene (:func:`planar_scene`) is a nonconvex point cloud, an L-shaped wall whose corner
 faces the robot, seen through a 2-D LiDAR (:func:`planar_scan`). :func:`fly` is the closed
