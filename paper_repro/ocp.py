@@ -126,10 +126,11 @@ class OCP:
         # σ = 0 as well, so the products are exactly 0.
         sp = ca.fmax(ca.fmax(z, 0) + ca.log1p(ca.exp(-ca.fabs(z))), 1e-300)
         sig = 1.0 / (1.0 + ca.exp(-z))
+        sig_c = 1.0 / (1.0 + ca.exp(z))  # 1 − σ without cancellation where σ ≈ 1
         eps = self.epsilon
         d1 = eps * sp ** (eps - 1) * sig
         d2 = self.kappa * eps * ((eps - 1) * sp ** (eps - 2) * sig**2
-                                 + sp ** (eps - 1) * sig * (1 - sig))
+                                 + sp ** (eps - 1) * sig * sig_c)
         return d1, d2
 
     def equilibrium_violation(self, beta_a):
@@ -170,11 +171,16 @@ class OCP:
 
     def equilibrium_rows(self, a):
         """The equalities that make (x_a, u_a) an equilibrium: none with a parametrisation
-        (it holds by construction), x_a − f(x_a, u_a) = 0 without."""
+        (it holds by construction), f_c(x_a, u_a) = 0 without.
+
+        f_c = 0 makes every RK4 stage zero, hence x_a = f(x_a, u_a) as eq. (7) asks; the
+        rows x_a − f(x_a, u_a) themselves are T_s·f_c + O(T_s²), scaled down by T_s = 0.01 s,
+        and the Riccati solver's multiplier passes could not meet them to its tolerance.
+        """
         if self.equilibria is not None:
             return ca.SX(0, 1) if isinstance(a, ca.SX) else ca.MX(0, 1)
         x_a, u_a = self.equilibrium(a)
-        return x_a - self.f(x_a, u_a)
+        return self.model.dynamics(x_a, u_a)
 
     @property
     def equilibrium_box(self) -> tuple[np.ndarray, np.ndarray]:
