@@ -103,6 +103,10 @@ NOTEBOOKS = (
                      *_figure("timeline_levers", "timeline_flights"), "timeline_levers.csv",
                      "timeline_flights.csv")),
                  quick={"quick": True}),
+    NotebookSpec("14_controller_tutorial", "tutorial, the controller: problem (21), RTI and IPOPT, "
+                 "a ground robot", (),
+                 _figure("tutorial_controller_plan", "tutorial_controller_ground_robot"),
+                 quick={"robot_steps": 200, "timing_repeats": 2}),
 )
 """Every notebook, in the order :func:`reproduce` executes them."""
 
