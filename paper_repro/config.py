@@ -64,16 +64,26 @@ class DistanceParams:
     eta : η, m, *paper* 0.3. Smoothing length; D → ½·d² as η → 0.
     sigma : σ, m, *paper* 0.8. Regularisation scale of the weights W_σ, eq. (9).
     metric : ``"smooth"`` (D_{η,σ}) or ``"euclidean"`` (½·min_j‖y − a_j‖², the baseline).
+    window : w, m, *chosen* 0 (off: the paper's hard cut-off at r_s). Width of the smooth
+        sensing window (:func:`paper_repro.distance.sensing_window`): a visible point at range
+        r counts with weight ψ(r), 1 inside r_s − w, 0 at r_s, C∞ in between, in the
+        centroid, W and V of the smooth metric. A point then enters and leaves D continuously
+        as it crosses the LiDAR sphere. Must be < r_s (``simulation.lidar_range``); the
+        smooth metric only.
     """
 
     eta: float = 0.3
     sigma: float = 0.8
     metric: str = "smooth"
+    window: float = 0.0
 
     def __post_init__(self):
         _require_positive("eta", self.eta)
         _require_positive("sigma", self.sigma)
         _require_choice("metric", self.metric, ("smooth", "euclidean"))
+        if not (_is_number(self.window) and math.isfinite(self.window) and self.window >= 0):
+            raise ValueError(f"window must be a finite number >= 0 (m; 0 is off), got "
+                             f"{self.window!r}")
 
 
 @dataclass(frozen=True)
@@ -351,6 +361,10 @@ class Config:
             if not isinstance(getattr(self, f.name), f.default_factory):
                 raise ValueError(f"{f.name} must be a {f.default_factory.__name__}, got "
                                  f"{getattr(self, f.name)!r}")
+        if self.distance.window >= self.simulation.lidar_range:
+            raise ValueError(f"distance.window must be < simulation.lidar_range = "
+                             f"{self.simulation.lidar_range} m (a window as wide as the range "
+                             f"sees nothing at full weight), got {self.distance.window!r}")
         # Cross-field: the artificial equilibrium (hover at rest, eq. 7) must exist in
         # λ(𝒳 × 𝒰), or the OCP is infeasible at every step.
         xl, xu, ul, uu = self.nmpc.relaxed_bounds()

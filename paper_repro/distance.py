@@ -53,13 +53,54 @@ class CloudWeights:
     sigma: float
 
     @classmethod
-    def from_cloud(cls, cloud, sigma: float) -> CloudWeights:
-        """Validate a cloud and compute its weights. ``cloud`` : (m, p) array, m ≥ 1, p = 2 or 3."""
+    def from_cloud(cls, cloud, sigma: float, log_presence=None) -> CloudWeights:
+        """Validate a cloud and compute its weights. ``cloud`` : (m, p) array, m ≥ 1, p = 2 or 3.
+
+        ``log_presence`` : optional (m,) ln ψ_j ≤ 0, how much each point is in view (see
+        :func:`sensing_window`). Point j then counts with weight ψ_j everywhere: in the
+        centroid (Σψ_j a_j / Σψ_j), in W_j (ln W_j gains ln ψ_j) and so in V = Σ ψ_j W_j. A
+        point with ψ_j → 0 contributes nothing, continuously.
+        """
         points = check_cloud(cloud)
         _check_scale("sigma", sigma)
-        centroid = points.mean(axis=0)
-        log_w = -np.sum((points - centroid) ** 2, axis=1) / (2.0 * sigma**2)
+        if log_presence is None:
+            centroid = points.mean(axis=0)
+            log_w = -np.sum((points - centroid) ** 2, axis=1) / (2.0 * sigma**2)
+        else:
+            log_p = np.asarray(log_presence, float)
+            if log_p.shape != (len(points),) or np.any(log_p > 0) or np.any(np.isnan(log_p)) \
+                    or not np.isfinite(log_p).any():
+                raise ValueError(f"log_presence must be ({len(points)},) values <= 0, at least "
+                                 "one finite")
+            presence = np.exp(log_p - log_p.max())
+            centroid = presence @ points / presence.sum()
+            log_w = log_p - np.sum((points - centroid) ** 2, axis=1) / (2.0 * sigma**2)
         return cls(points, centroid, log_w, float(_logsumexp_np(log_w)), float(sigma))
+
+
+def sensing_window(r, sensor_range: float, width: float) -> np.ndarray:
+    """ln ψ(r) of the smooth sensing window: ψ = 1 for r ≤ r_s − w, 0 for r ≥ r_s, and in
+    between the C∞ step ψ = e^{−1/t} / (e^{−1/t} + e^{−1/(1−t)}), t = (r_s − r)/w.
+
+    Every derivative of ψ vanishes at both ends, so a point that crosses r_s enters D, ∇D
+    and every higher derivative continuously (a hard cut-off makes D jump).
+
+    Parameters
+    ----------
+    r : (m,) distances from the sensor, m.  sensor_range : r_s, m.  width : w, 0 < w ≤ r_s, m.
+
+    Returns
+    -------
+    (m,) ln ψ ≤ 0 (−inf at and beyond r_s).
+    """
+    t = (sensor_range - np.asarray(r, float)) / width
+    out = np.zeros_like(t)
+    out[t <= 0] = -np.inf
+    mid = (t > 0) & (t < 1)
+    tm = t[mid]
+    a, b = -1.0 / tm, -1.0 / (1.0 - tm)
+    out[mid] = a - np.logaddexp(a, b)
+    return out
 
 
 def smooth_distance(y, cloud, eta: float, sigma: float):

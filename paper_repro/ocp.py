@@ -93,7 +93,8 @@ class OCP:
         self.kappa, self.epsilon = b.kappa, b.epsilon
         d = cfg.distance
         self.scan = ScanLayout(d.metric, d.eta, d.sigma, b.d_min, p.region_slots,
-                               p.points_per_region, self.ny)
+                               p.points_per_region, self.ny, d.window,
+                               cfg.simulation.lidar_range)
 
     # Cost terms, as residuals r whose squared norm is the term: the Gauss-Newton solver needs
     # the residual, the IPOPT transcription its square.
@@ -268,10 +269,16 @@ class ScanLayout:
     unused region slot holds one dummy point and active = 0, which multiplies its penalty. W
     and V are computed from the visible points (the vehicle only knows what is in range).
 
+    With a sensing window (``window`` > 0, smooth metric) each visible point is weighted by
+    ψ(r), r its range from the sensor (the vehicle's position), in the centroid, W and V
+    (:func:`~paper_repro.distance.sensing_window`): ln ψ is folded into ln W, so the solvers'
+    expressions are unchanged and a point at the edge of the range contributes nothing.
+
     Attributes
     ----------
     metric : ``"smooth"`` or ``"euclidean"``.  eta, sigma : η, σ, m.  d_min : m².
     slots : region slots.  capacity : points per slot.  dim : p, 3 or 2.
+    window : w, m (0: off).  sensor_range : r_s, m.
     """
 
     metric: str
@@ -281,6 +288,8 @@ class ScanLayout:
     slots: int
     capacity: int
     dim: int = 3
+    window: float = 0.0
+    sensor_range: float = 3.0
 
     @property
     def size(self) -> int:
@@ -310,9 +319,18 @@ class ScanLayout:
         ref = as_vector("position", position, dim)
         seen = [v for v in check_visible(visible, dim) if len(v)]
         sq = [np.sum((v - ref) ** 2, axis=1) for v in seen]
+        presence = [None] * len(seen)
+        if self.window > 0 and self.metric == "smooth":
+            presence = [dist.sensing_window(np.sqrt(s), self.sensor_range, self.window)
+                        for s in sq]
+            inside = [np.isfinite(p) for p in presence]
+            seen, sq, presence = zip(*[(v[k], s[k], p[k]) for v, s, p, k in
+                                       zip(seen, sq, presence, inside) if k.any()]) \
+                if any(k.any() for k in inside) else ((), (), ())
         if len(seen) > slots:
             order = np.argsort([s.min() for s in sq])[:slots]
             seen, sq = [seen[i] for i in order], [sq[i] for i in order]
+            presence = [presence[i] for i in order]
         blocks = []
         for slot in range(slots):
             pts = np.full((cap, dim), _FAR_AWAY)
@@ -320,7 +338,7 @@ class ScanLayout:
             mask = np.zeros(cap)
             if slot < len(seen):
                 cloud = seen[slot]
-                weights = dist.CloudWeights.from_cloud(cloud, self.sigma)
+                weights = dist.CloudWeights.from_cloud(cloud, self.sigma, presence[slot])
                 keep = np.arange(len(cloud))
                 if len(cloud) > cap:
                     keep = np.sort(np.argsort(sq[slot])[:cap])
