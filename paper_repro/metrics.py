@@ -131,6 +131,28 @@ COLLISION_CLEARANCE = 0.35
 (h = 0.332 m, Table I): a rotor would touch a cloud point."""
 
 
+SCAN_STEP_THRESHOLD = 0.01
+"""A thrust step above this (N) at a change of the visible set counts as a jump (10 mN, ten
+times the sign-change dead band)."""
+
+
+def scan_change_steps(result) -> tuple[np.ndarray, np.ndarray]:
+    """The thrust steps where the LiDAR's visible set changed, and the others.
+
+    Step k is max_i |u_{k,i} − u_{k−1,i}| (N), the largest rotor step into the first solve
+    that sees scan k. It counts as a change of the visible set when scan k holds a different
+    number of points from scan k − 1 (a proxy: a swap at equal count is missed).
+
+    Returns
+    -------
+    (at_changes, elsewhere) : 1-D arrays of |Δu| in N.
+    """
+    u = np.asarray(result.u, float)
+    du = np.abs(np.diff(u, axis=0)).max(axis=1)
+    change = np.diff(np.asarray(result.visible_points)) != 0
+    return du[change], du[~change]
+
+
 def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
     """One row of the summary table for a :class:`~paper_repro.simulation.SimulationResult`.
 
@@ -147,6 +169,9 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
       scan points) and ``fault_steps`` (steps without a usable state or solve).
     * the set-up's hazards (``meta["hazards"]``, :func:`paper_repro.safety.setup_hazards`):
       ``start_unsafe``, ``target_unsafe``, ``target_unreachable``.
+    * thrust steps at changes of the visible set (:func:`scan_change_steps`): ``scan_changes``,
+      the median |Δu| there and elsewhere, and the share of changes with a step above
+      :data:`SCAN_STEP_THRESHOLD`.
     """
     cfg = result.config
     ts = cfg.nmpc.ts
@@ -159,6 +184,7 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
     min_clearance = float(np.min(result.clearance))
     wall = float(result.meta.get("wall_time_s", float("nan")))
     hazards = result.meta.get("hazards") or {}
+    at_changes, elsewhere = scan_change_steps(result)
     return {
         "run": f"{result.scene.name}/{cfg.distance.metric}",
         "metric": cfg.distance.metric,
@@ -197,9 +223,18 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
         "hf_rms_N": chat["hf_rms"],
         "du_sign_changes": chat["du_sign_changes"],
         "cutoff_hz": chat["cutoff_hz"],
+        "scan_changes": int(len(at_changes)),
+        "du_scan_change_median_N": _median(at_changes),
+        "du_elsewhere_median_N": _median(elsewhere),
+        "scan_change_jump_share": (float(np.mean(at_changes > SCAN_STEP_THRESHOLD))
+                                   if len(at_changes) else float("nan")),
         "wall_time_s": wall,
         "steps_per_s": result.steps / wall if wall > 0 else float("nan"),
     }
+
+
+def _median(values) -> float:
+    return float(np.median(values)) if len(values) else float("nan")
 
 
 def summary_table(results, cutoff_hz: float = DEFAULT_CUTOFF_HZ):

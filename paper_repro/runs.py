@@ -79,9 +79,19 @@ class RunSpec:
         return base / f"{self.name}-{self.key[:HASH_LENGTH]}"
 
 
+KEY_NEUTRAL_DEFAULTS = {("distance", "window"): 0.0}
+"""Options added after runs were cached, at the value that flies exactly as before: left out of
+the key at that value, so adding an option does not orphan every cached run."""
+
+
 def run_key(config: Config, max_steps: int, scene_fingerprint: str) -> str:
-    """SHA-256 (hex) of a run: ``config.to_dict()``, ``max_steps`` and the scene fingerprint."""
-    payload = {"config": config.to_dict(), "max_steps": int(max_steps),
+    """SHA-256 (hex) of a run: ``config.to_dict()`` (less :data:`KEY_NEUTRAL_DEFAULTS`),
+    ``max_steps`` and the scene fingerprint."""
+    described = config.to_dict()
+    for (part, name), neutral in KEY_NEUTRAL_DEFAULTS.items():
+        if described[part].get(name) == neutral:
+            del described[part][name]
+    payload = {"config": described, "max_steps": int(max_steps),
                "scene": scene_fingerprint}
     text = json.dumps(payload, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode()).hexdigest()

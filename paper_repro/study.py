@@ -221,8 +221,36 @@ def sensor_noise(quick: bool = False, scenes: int | None = None,
                  f"smooth vs euclidean, perfect vs noisy LiDAR ({NOISY_LIDAR}), {n} passages")
 
 
+SENSING_WINDOWS = (0.0, 0.5, 1.0)
+"""Widths w (m) of the smooth sensing window flown by :func:`sensing_window` (0: the paper's
+hard cut-off at r_s = 3 m)."""
+
+
+def sensing_window(quick: bool = False, scenes: int | None = None,
+                   base: Config | None = None) -> Study:
+    """The smooth metric with the sensing window of each width in :data:`SENSING_WINDOWS`, on
+    ``scenes`` random passages (12; 2 with ``quick``; w = 0 are the runs of
+    :func:`monte_carlo`). Do thrust steps at changes of the visible set disappear, and at what
+    cost in clearance and completion?"""
+    n = scenes if scenes is not None else (2 if quick else 12)
+    _require_count("scenes", n)
+    base = base or Config()
+    steps = QUICK_STEPS if quick else PASSAGE_STEPS
+    specs = []
+    for width in SENSING_WINDOWS:
+        cfg = dataclasses.replace(base, distance=dataclasses.replace(base.distance,
+                                                                     window=width))
+        for seed in range(n):
+            spec = passage_spec(seed, "smooth", max_steps=steps, base=cfg,
+                                tag="" if width == 0 else f"w{width:g}")
+            specs.append(dataclasses.replace(spec, labels=spec.labels + (("window_m", width),)))
+    return Study("sensing_window" + ("-quick" if quick else ""), tuple(specs),
+                 f"smooth metric, sensing window w in {SENSING_WINDOWS} m, {n} passages")
+
+
 STUDIES: dict[str, Callable[..., Study]] = {"monte_carlo": monte_carlo, "eta_sweep": eta_sweep,
-                                            "sensor_noise": sensor_noise}
+                                            "sensor_noise": sensor_noise,
+                                            "sensing_window": sensing_window}
 """The studies ``python -m paper_repro study NAME`` knows."""
 
 
