@@ -5,9 +5,10 @@
 Flies the mission once per window width w (``DistanceParams.window``; 0 is the paper's hard
 cut-off), saves each result in ``DIR/w<w>/``, and prints per width: the steps at which the
 number of visible points changed ("events"), the median and 90th percentile of |Δu| (the
-largest of the four rotors' thrust steps, N) at events and at the other steps, the share of
-events with a step above 0.01 N, the Mann-Whitney p-value of "|Δu| at events and elsewhere come
-from the same distribution", the minimum clearance and the mission's outcome. With
+largest of the four rotors' thrust steps, N) at events and at the other steps within 0.2 s of
+an event (the same phase of flight; :func:`paper_repro.metrics.scan_change_steps`), the share
+of events with a step above 0.01 N, the Mann-Whitney p-value of "|Δu| at events and around
+them come from the same distribution", the minimum clearance and the mission's outcome. With
 ``--from-saved`` it only reads the results in DIR. The last line is the table as JSON.
 """
 

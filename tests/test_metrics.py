@@ -7,6 +7,7 @@ from paper_repro import Config, make_scene
 from paper_repro.metrics import (
     chattering_metrics,
     input_spectrum,
+    scan_change_steps,
     sign_changes,
     summary_row,
     summary_table,
@@ -185,3 +186,25 @@ def test_summary_table_has_one_row_per_run():
         assert col in table.columns
     with pytest.raises(ValueError):
         summary_table([])
+
+
+def test_scan_change_steps_pick_the_steps_that_see_a_new_set_and_their_neighbours():
+    """A thrust jump placed at the first solve that sees a new scan is found there; the
+    comparison steps are the non-change steps within the neighbourhood only."""
+    import dataclasses
+
+    r = _result()
+    visible = np.zeros(400, int)
+    visible[100:] = 5   # scan 100 sees 5 points
+    visible[300:] = 7   # scan 300 sees 7
+    u = np.full((400, 4), 5.49)
+    u[100:] += 0.2      # the solve of scan 100 jumps by 0.2 N
+    u[300:, 2] -= 0.05  # and that of scan 300 by 0.05 N on one rotor
+    r = dataclasses.replace(r, u=u, visible_points=visible)
+    at, around = scan_change_steps(r, neighbourhood=3)
+    np.testing.assert_allclose(at, [0.2, 0.05])
+    assert len(around) == 2 * 6 and np.all(around == 0.0)
+    assert len(scan_change_steps(r, neighbourhood=None)[1]) == 399 - 2
+    row = summary_row(r)
+    assert row["scan_changes"] == 2 and row["scan_change_jump_share"] == 1.0
+    assert row["du_scan_change_median_N"] == pytest.approx(0.125)
