@@ -94,3 +94,34 @@ def test_the_window_is_an_option_of_the_config_read_by_both_solvers():
         DistanceParams(window=-0.1)
     assert Config(distance=DistanceParams(window=1.0),
                   simulation=SimulationParams(lidar_range=4.0)).distance.window == 1.0
+
+
+def test_both_solvers_fly_the_window_and_agree():
+    """The window lives in the packed scan, so both solvers read it: near the encounter's
+    corner the converged SQP equals IPOPT with the window on, and what the solvers are given
+    differs from the hard cut-off's (a point at 2.5-3 m weighs less)."""
+    import dataclasses
+
+    from paper_repro import Lidar, NMPCParams, make_scene
+    from paper_repro.model import equilibrium
+    from paper_repro.nmpc import TrackingNMPC
+    from paper_repro.rti import RealTimeNMPC
+
+    scene = make_scene("encounter")
+    small = NMPCParams(region_slots=1, points_per_region=48)
+    cfg = Config(distance=DistanceParams(window=0.5), nmpc=small,
+                 simulation=SimulationParams(scenario="encounter"))
+    x0, _ = equilibrium([-18.3, 0.2, 2.0])
+    x0[6] = 0.2
+    visible = Lidar(scene.clouds).scan(x0[:3])
+    ranges = np.linalg.norm(visible[0] - x0[:3], axis=1)
+    assert np.any(ranges > 2.5), "the test needs points in the window's band"
+    fast = RealTimeNMPC(cfg, max_iter=40, step_tol=1e-10)
+    a = fast.solve(x0, scene.targets[0], visible)
+    b = TrackingNMPC(dataclasses.replace(cfg, nmpc=dataclasses.replace(
+        small, solver="reference"))).solve(x0, scene.targets[0], visible)
+    assert a.success and b.success
+    np.testing.assert_allclose(a.x, b.x, atol=1e-4)
+    windowed = fast.obstacle_parameters(visible, x0[:3])
+    hard = OCP(dataclasses.replace(cfg, distance=DistanceParams())).scan.pack(visible, x0[:3])
+    assert windowed.shape == hard.shape and np.abs(windowed - hard).max() > 0.1
