@@ -420,7 +420,7 @@ def main(args) -> int:
 
 
 STUDY_NOTEBOOKS = {"monte_carlo": "09_monte_carlo", "eta_sweep": "10_eta_sweep",
-                   "sensor_noise": "13_sensor_noise"}
+                   "sensor_noise": "13_sensor_noise", "sensing_window": "15_smooth_sensing"}
 """The notebook that draws each study's figures from its saved table."""
 
 

@@ -41,7 +41,13 @@ STUDY_OUTPUTS = {
     "10_eta_sweep": ("eta_sweep_settings.csv", "eta_sweep_eta.png", "eta_sweep_sigma.png"),
     "13_sensor_noise": ("sensor_noise_paired.csv", "sensor_noise_cost.csv",
                         "sensor_noise_ratios.png"),
+    "15_smooth_sensing": ("sensing_window_psi.png", "sensing_window_thrusts.png",
+                          "sensing_window_du.png", "sensing_window_study.png",
+                          "sensing_window_mission.csv", "sensing_window_rates.csv",
+                          "sensing_window_summary.csv", "sensing_window_paired.csv"),
 }
+# Study notebooks that also fly: a short mission, cached in the test's folder.
+STUDY_OVERRIDES = {"15_smooth_sensing": {"mission": "encounter", "mission_steps": 3000}}
 
 
 @pytest.fixture(scope="session")
@@ -133,8 +139,10 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, tmp_path
     assert (study.table["status"] == "ok").all(), study.failed["error"].tolist()
     figures = tmp_path / "figures"
     figures.mkdir()
-    out = R.execute_notebook(R.notebook_path(name), tmp_path / f"{name}.ipynb",
-                             {"study_dir": str(study.directory), "figures_dir": str(figures)})
+    params = {"study_dir": str(study.directory), "figures_dir": str(figures)}
+    if name in STUDY_OVERRIDES:
+        params.update(STUDY_OVERRIDES[name], runs_dir=str(tmp_path / "runs"))
+    out = R.execute_notebook(R.notebook_path(name), tmp_path / f"{name}.ipynb", params)
     code = [c for c in nbformat.read(out, as_version=4).cells if c.cell_type == "code"]
     assert not any(o.get("output_type") == "error" for c in code for o in c.outputs)
     for f in STUDY_OUTPUTS[name]:
@@ -148,9 +156,19 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, tmp_path
     elif name == "10_eta_sweep":
         settings = pd.read_csv(figures / "eta_sweep_settings.csv")
         assert len(settings) == 3 and (settings["runs"] == 2).all()
-    else:
+    elif name == "13_sensor_noise":
         paired = pd.read_csv(figures / "sensor_noise_paired.csv")
         assert set(paired["sensor"]) == {"perfect", "noisy"} and (paired["scenes"] == 2).all()
+    else:
+        rates = pd.read_csv(figures / "sensing_window_rates.csv")
+        assert set(rates["window_m"]) == set(S.SENSING_WINDOWS) and (rates["n"] == 2).all()
+        per_width = rates[rates["event"] != "collision"].groupby("window_m")["k"].sum()
+        assert (per_width == 2).all()  # every run in exactly one class
+        # the encounter flown with and without the window: points enter and leave the sphere
+        mission = pd.read_csv(figures / "sensing_window_mission.csv")
+        assert list(mission["window_m"]) == [0.0, 0.5] and (mission["steps"] == 3000).all()
+        assert (mission["scan_changes"] > 0).all()
+        assert abs(mission["min_clearance_m"].diff().iloc[1]) < 0.05
 
 
 TUNING = "12_tuning"

@@ -311,3 +311,131 @@ def test_solve_time_legend_shows_sub_millisecond_medians(result, seconds, shown)
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert labels == [f"smooth (median {shown})"]
     plt.close(fig)
+
+
+# --- the smooth sensing window ----------------------------------------------------------------
+
+def test_sensing_window_figure_draws_psi_and_its_range_marks():
+    from paper_repro.distance import sensing_window
+
+    fig = P.plot_sensing_window(3.0, widths=(0.25, 0.5, 1.0))
+    lines = fig.axes[0].get_lines()
+    cutoff = lines[0]
+    r = cutoff.get_xdata()
+    assert np.array_equal(cutoff.get_ydata(), (r < 3.0).astype(float))
+    assert r.min() == pytest.approx(1.5) and r.max() > 3.0  # 1.5 w_max before r_s, and past
+    for i, w in enumerate((0.25, 0.5, 1.0)):
+        curve, marks = lines[1 + 2 * i], lines[2 + 2 * i]
+        x, psi = curve.get_xdata(), curve.get_ydata()
+        assert np.allclose(psi, np.exp(sensing_window(x, 3.0, w)))
+        assert np.all(psi[x <= 3.0 - w] == 1.0) and np.all(psi[x >= 3.0] == 0.0)
+        # full weight ends at r_s - w, half weight at r_s - w/2 (and psi is 1/2 there)
+        assert np.allclose(marks.get_xdata(), [3.0 - w, 3.0 - w / 2])
+        assert np.allclose(marks.get_ydata(), [1.0, 0.5])
+        assert np.exp(sensing_window([3.0 - w / 2], 3.0, w))[0] == pytest.approx(0.5)
+    plt.close(fig)
+    for bad in ((), (0.0,), (3.0,)):
+        with pytest.raises(ValueError, match="widths"):
+            P.plot_sensing_window(3.0, widths=bad)
+
+
+@pytest.fixture(scope="module")
+def scan_result(result):
+    """The hand-made flight with the visible set changing at steps 2000 (a smooth instant,
+    |Δu| ≈ 2.5 mN), 2500 (every thrust steps by 50 mN) and 3050 (inside the chattering
+    burst)."""
+    visible = np.zeros(result.steps, int)
+    visible[2000:] += 10
+    visible[2500:] += 5
+    visible[3050:] -= 3
+    u = result.u.copy()
+    u[2500:] += 0.05
+    return dataclasses.replace(result, u=u, visible_points=visible)
+
+
+def test_scan_change_times_are_the_steps_where_the_count_changes(scan_result):
+    assert np.allclose(P.scan_change_times(scan_result), [20.0, 25.0, 30.5])
+
+
+def test_scan_change_thrusts_mark_every_change_and_its_step(scan_result, result):
+    fig = P.plot_scan_change_thrusts([scan_result, result], ["changes", "none"],
+                                     t_range=(15.0, 35.0))
+    axes = np.array(fig.axes).reshape(5, 2)
+    for i in range(4):
+        f = axes[i, 0].get_lines()[0]
+        t = f.get_xdata()
+        assert t.min() == pytest.approx(15.0) and t.max() == pytest.approx(35.0)
+        assert np.allclose(f.get_ydata(), scan_result.u[1500:3501, i])
+        marks = [ln.get_xdata()[0] for ln in axes[i, 0].get_lines()[1:]]
+        assert np.allclose(marks, [20.0, 25.0, 30.5])
+        assert len(axes[i, 1].get_lines()) == 1  # no change in the second run
+        assert axes[i, 0].get_shared_y_axes().joined(axes[i, 0], axes[i, 1])
+    du_line, dots, threshold = axes[4, 0].get_lines()[:3]
+    du = np.abs(np.diff(scan_result.u, axis=0)).max(axis=1)
+    assert np.allclose(du_line.get_ydata(), du[1499:3500])  # steps 1500..3500
+    assert np.allclose(dots.get_xdata(), [20.0, 25.0, 30.5])
+    assert np.allclose(dots.get_ydata(), du[[1999, 2499, 3049]])
+    assert du[1999] < 0.01 < du[2499] and du[3049] > 0.01
+    assert np.allclose(threshold.get_ydata(), 0.01) and axes[4, 0].get_yscale() == "log"
+    assert "3 changes" in axes[0, 0].get_title() and "2 with a step" in axes[0, 0].get_title()
+    assert "0 changes" in axes[0, 1].get_title()
+    plt.close(fig)
+    with pytest.raises(ValueError, match="label"):
+        P.plot_scan_change_thrusts([result], ["a", "b"])
+
+
+def test_scan_change_du_draws_the_ecdfs_at_and_around_the_changes(scan_result):
+    from paper_repro.metrics import scan_change_steps
+
+    for neighbourhood in (20, None):
+        fig = P.plot_scan_change_du([scan_result], ["run"], neighbourhood=neighbourhood)
+        ax = fig.axes[0]
+        at_line, around_line, threshold = ax.get_lines()
+        at, around = scan_change_steps(scan_result, neighbourhood)
+        assert len(at) == 3 and len(around) == (120 if neighbourhood else scan_result.steps - 4)
+        for line, values in ((at_line, at), (around_line, around)):
+            assert np.allclose(line.get_xdata(), np.sort(np.maximum(values, 1e-7)))
+            assert line.get_ydata()[-1] == pytest.approx(1.0)
+        assert np.allclose(threshold.get_xdata(), 0.01) and ax.get_xscale() == "log"
+        labels = [t.get_text() for t in ax.get_legend().get_texts()]
+        assert labels[0] == "run, at changes (3 steps)"
+        assert labels[1] == ("run, within 0.2 s around (120 steps)" if neighbourhood
+                             else f"run, elsewhere ({scan_result.steps - 4} steps)")
+        plt.close(fig)
+
+
+def test_scan_change_study_draws_each_width():
+    import pandas as pd
+    from matplotlib.collections import LineCollection, PathCollection
+
+    rows = []
+    for w, share, step in ((0.0, 0.4, 3e-3), (0.5, 0.05, 1e-4)):
+        for seed in range(3):
+            rows.append({"window_m": w, "scene_seed": seed, "status": "ok",
+                         "outcome": "completed" if seed else "stalled", "completed": seed > 0,
+                         "stalled": seed == 0, "collision": False,
+                         "scan_change_jump_share": share + 0.01 * seed,
+                         "du_scan_change_median_N": step * (1 + seed),
+                         "du_around_changes_median_N": 1e-4 * (1 + seed),
+                         "min_clearance_m": 1.3 + w / 10 + 0.01 * seed})
+    rows[1]["scan_change_jump_share"] = np.nan  # a run without a change of the visible set
+    rows[1]["du_scan_change_median_N"] = rows[1]["du_around_changes_median_N"] = np.nan
+    fig = P.plot_scan_change_study(pd.DataFrame(rows))
+    rates, shares, steps, clearance = fig.axes
+    heights = [p.get_height() for p in rates.patches]
+    assert np.allclose(heights, [2 / 3, 1 / 3, 0.0] * 2)  # completed, stalled, collision
+    def runs(ax):  # the per-run dots of a panel, one collection per width (and column)
+        return [c for c in ax.collections if isinstance(c, PathCollection)]
+
+    drawn = np.concatenate([c.get_offsets()[:, 1] for c in runs(shares)])
+    assert np.allclose(np.sort(drawn), [0.05, 0.06, 0.07, 0.4, 0.42])
+    assert "1 run(s) without a change" in [t.get_text() for t in shares.texts]
+    assert steps.get_yscale() == "log" and len(runs(steps)) == 4  # at, around per width
+    medians = [seg[0][1] for c in clearance.collections if isinstance(c, LineCollection)
+               for seg in c.get_segments()]
+    assert np.allclose(medians, [1.31, 1.36])
+    plt.close(fig)
+    empty = pd.DataFrame(rows).assign(scan_change_jump_share=np.nan)
+    fig = P.plot_scan_change_study(empty)
+    assert "no change of the visible set" in [t.get_text() for t in fig.axes[1].texts]
+    plt.close(fig)
