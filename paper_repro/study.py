@@ -411,9 +411,10 @@ def main(args) -> int:
 
         notebook = STUDY_NOTEBOOKS[args.name]
         t0 = time.perf_counter()
+        params = {"study_dir": str(result.directory),
+                  **(STUDY_NOTEBOOK_QUICK.get(args.name, {}) if args.quick else {})}
         execute_notebook(notebook_path(notebook),
-                         paths.executed_dir(args.quick) / f"{notebook}.ipynb",
-                         {"study_dir": str(result.directory)})
+                         paths.executed_dir(args.quick) / f"{notebook}.ipynb", params)
         print(f"notebook {notebook}: figures in {result.directory} "
               f"({duration(time.perf_counter() - t0)})", flush=True)
     return 0
@@ -422,6 +423,10 @@ def main(args) -> int:
 STUDY_NOTEBOOKS = {"monte_carlo": "09_monte_carlo", "eta_sweep": "10_eta_sweep",
                    "sensor_noise": "13_sensor_noise", "sensing_window": "15_smooth_sensing"}
 """The notebook that draws each study's figures from its saved table."""
+
+STUDY_NOTEBOOK_QUICK = {"sensing_window": {"mission": "encounter", "mission_steps": 3000}}
+"""Notebook parameters of a ``--quick`` study beyond its table (notebook 15 also flies one
+mission with and without the window: the encounter's first 30 s instead of the paper's)."""
 
 
 def study_dir(name: str, quick: bool = False) -> Path:
