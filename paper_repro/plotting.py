@@ -10,6 +10,11 @@ summary                  :func:`plot_solve_times`, :func:`plot_input_spectrum`
 the clock (issue 12)     :func:`plot_clock_levers`, :func:`plot_flight_clocks`
 tutorial (eq. 8–13)      :func:`plot_distance_slice`, :func:`plot_eta_sigma`,
                          :func:`plot_gradient_field`, :func:`plot_half_squared_limit`
+studies                  :func:`plot_rates`, :func:`plot_paired`, :func:`plot_paired_by`,
+                         :func:`plot_clearance_ecdf`, :func:`plot_study_solve_times`,
+                         :func:`plot_sweep`
+sensing window           :func:`plot_sensing_window`, :func:`plot_scan_change_thrusts`,
+                         :func:`plot_scan_change_du`, :func:`plot_scan_change_study`
 video                    :func:`animate_flight` (GIF)
 =======================  ====================================================================
 
