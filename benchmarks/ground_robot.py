@@ -14,9 +14,9 @@ JSON.
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
+from _table import print_table  # benchmarks/_table.py (the script's folder)
 
 from paper_repro.controllers import make_controller
 from paper_repro.ground_robot import fly, planar_scene, unicycle_config, unicycle_model
@@ -52,16 +52,13 @@ def main() -> None:
                 "passed": bool(r.x[-1, 0] > wall),
                 "tv_per_s": chat["total_variation"] / (len(r.u) * cfg.nmpc.ts),
                 "max_abs_du": chat["max_abs_du"], "sign_changes": chat["du_sign_changes"]})
-    header = ("metric", "solver", "median ms", "p99 ms", "failures", "max dev m",
-              "min clear m", "passed", "TV/s", "max|du|", "reversals")
     print(f"\nunicycle, planar L wall, {args.steps} steps of {cfg.nmpc.ts} s")
-    print("".join(f"{h:>12}" for h in header))
-    for r in rows:
-        print(f"{r['metric']:>12}{r['solver']:>12}{r['median_ms']:12.2f}{r['p99_ms']:12.2f}"
-              f"{r['failures']:12d}{r['max_dev_m']:12.2e}{r['min_clearance_m']:12.3f}"
-              f"{str(r['passed']):>12}{r['tv_per_s']:12.3f}{r['max_abs_du']:12.3f}"
-              f"{r['sign_changes']:12d}")
-    print(json.dumps(rows))
+    print_table(rows, [("metric", "metric", "s"), ("solver", "solver", "s"),
+                       ("median_ms", "median ms", ".2f"), ("p99_ms", "p99 ms", ".2f"),
+                       ("failures", "failures", "d"), ("max_dev_m", "max dev m", ".2e"),
+                       ("min_clearance_m", "min clear m", ".3f"), ("passed", "passed", "s"),
+                       ("tv_per_s", "TV/s", ".3f"), ("max_abs_du", "max|du|", ".3f"),
+                       ("sign_changes", "reversals", "d")])
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+from _table import print_table  # benchmarks/_table.py (the script's folder)
 from scipy.stats import mannwhitneyu
 
 from paper_repro import Config
@@ -64,15 +65,14 @@ def main() -> None:
         rows.append(row(w, result))
         print(json.dumps(rows[-1]), flush=True)
     print(f"\n{args.scenario}: |Δu| (max over rotors, N) at changes of the visible set")
-    header = ("w m", "events", "med ev", "p90 ev", "med other", "p90 other", ">10 mN",
-              "MW p", "min clear", "outcome")
-    print("".join(f"{h:>11}" for h in header))
-    for r in rows:
-        print(f"{r['window_m']:11.2f}{r['events']:11d}{r['median_du_events_N']:11.4f}"
-              f"{r['p90_du_events_N']:11.4f}{r['median_du_other_N']:11.5f}"
-              f"{r['p90_du_other_N']:11.5f}{r['share_events_above_10mN']:11.2f}"
-              f"{r['mannwhitney_p']:11.2g}{r['min_clearance_m']:11.3f}{r['outcome']:>11}")
-    print(json.dumps(rows))
+    print_table(rows, [("window_m", "w m", ".2f"), ("events", "events", "d"),
+                       ("median_du_events_N", "med ev", ".4f"),
+                       ("p90_du_events_N", "p90 ev", ".4f"),
+                       ("median_du_other_N", "med around", ".5f"),
+                       ("p90_du_other_N", "p90 around", ".5f"),
+                       ("share_events_above_10mN", ">10 mN", ".2f"),
+                       ("mannwhitney_p", "MW p", ".2g"), ("min_clearance_m", "min clear", ".3f"),
+                       ("outcome", "outcome", "s")], width=11)
 
 
 if __name__ == "__main__":

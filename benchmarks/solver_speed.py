@@ -14,11 +14,11 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import platform
 import time
 
 import numpy as np
+from _table import print_table  # benchmarks/_table.py (the script's folder)
 
 from paper_repro import Config
 from paper_repro.controllers import make_controller
@@ -76,15 +76,12 @@ def main() -> None:
     print(f"\n{args.scenario}, {args.metric} metric, {args.steps} steps, "
           f"{platform.processor() or platform.machine()} ({_cpu_name()}), "
           f"{__import__('os').cpu_count()} cores")
-    header = ("solver", "median ms", "p95 ms", "p99 ms", "max ms", "iters", "failures",
-              "hpipm QPs", "max dev m", "min clear m")
-    print("".join(f"{h:>14}" for h in header))
-    for row in rows:
-        print(f"{row['solver']:>14}{row['median_ms']:14.2f}{row['p95_ms']:14.2f}"
-              f"{row['p99_ms']:14.2f}{row['max_ms']:14.2f}{row['iterations_median']:14.0f}"
-              f"{row['failures']:14d}{row['hpipm_qps']:14d}{row['max_dev_m']:14.2e}"
-              f"{row['min_clearance_m']:14.3f}")
-    print(json.dumps(rows))
+    print_table(rows, [("solver", "solver", "s"), ("median_ms", "median ms", ".2f"),
+                       ("p95_ms", "p95 ms", ".2f"), ("p99_ms", "p99 ms", ".2f"),
+                       ("max_ms", "max ms", ".2f"), ("iterations_median", "iters", ".0f"),
+                       ("failures", "failures", "d"), ("hpipm_qps", "hpipm QPs", "d"),
+                       ("max_dev_m", "max dev m", ".2e"),
+                       ("min_clearance_m", "min clear m", ".3f")], width=14)
 
 
 def _cpu_name() -> str:
