@@ -52,7 +52,7 @@ class TrackingNMPC:
     # --- public ------------------------------------------------------------------------------
 
     def solve(self, x0, target, visible: Sequence[np.ndarray] = (),
-              previous: NMPCSolution | None = None) -> NMPCSolution:
+              previous: NMPCSolution | None = None, velocities=None) -> NMPCSolution:
         """Solve the OCP from state ``x0`` towards output set-point ``target``.
 
         Parameters
@@ -66,13 +66,17 @@ class TrackingNMPC:
         previous : the plan of the previous sampling instant; the warm start is that plan
             shifted by one step (see :meth:`NMPCSolution.shifted`). Hover at the current
             position if omitted.
+        velocities : moving regions (a controller built with ``simulation.prediction`` other
+            than ``"static"``): one (p,) predicted velocity per region of ``visible``, m/s;
+            region i at stage j is the scanned cloud moved by velocities[i]·j·h.
         """
         start = time.perf_counter()  # solve_time includes packing the scan: the whole call
         ocp = self.ocp
         x0 = as_vector("x0", x0, ocp.nx)
         target = as_vector("target", target, ocp.ny)
         visible = check_visible(visible, ocp.ny)
-        params = np.concatenate([target, self.obstacle_parameters(visible, ocp.output(x0))])
+        params = np.concatenate([target, self.obstacle_parameters(visible, ocp.output(x0),
+                                                                  velocities)])
         guess = previous.shifted() if previous is not None else self.hover_guess(x0)
         w0 = self._pack(guess.x, guess.u, self.ocp.parameters_of(guess.x_a, guess.u_a))
         w0[self._ix[0]] = x0
@@ -100,9 +104,10 @@ class TrackingNMPC:
         hover at its position and yaw)."""
         return self.ocp.rest(x0)
 
-    def obstacle_parameters(self, visible: Sequence[np.ndarray], position) -> np.ndarray:
+    def obstacle_parameters(self, visible: Sequence[np.ndarray], position,
+                            velocities=None) -> np.ndarray:
         """The LiDAR scan in the NLP's parameter layout (:meth:`ScanLayout.pack`)."""
-        return self.ocp.scan.pack(visible, position)
+        return self.ocp.scan.pack(visible, position, velocities)
 
     # --- construction --------------------------------------------------------------------------
 
@@ -129,7 +134,7 @@ class TrackingNMPC:
 
         scan, beta, active = ocp.scan.barriers()
         outputs = [h(X[:, j]) for j in range(n + 1)] + [ya]  # y_0..y_N, then y_{N+1} = y_a
-        betas = [beta(y) for y in outputs]
+        betas = [beta(y, j * ocp.step) for j, y in enumerate(outputs)]  # y_j at τ = j·h
         for i in range(ocp.scan.slots):
             gs = ocp.violations([b[i] for b in betas])
             cost += ocp.mu * active[i] * sum(ocp.penalty(g) for g in gs)

@@ -94,7 +94,9 @@ class OCP:
         d = cfg.distance
         self.scan = ScanLayout(d.metric, d.eta, d.sigma, b.d_min, p.region_slots,
                                p.points_per_region, self.ny, d.window,
-                               cfg.simulation.lidar_range)
+                               cfg.simulation.lidar_range,
+                               getattr(cfg.simulation, "prediction", "static") != "static")
+        self.step = p.prediction_step
 
     # Cost terms, as residuals r whose squared norm is the term: the Gauss-Newton solver needs
     # the residual, the IPOPT transcription its square.
@@ -279,6 +281,8 @@ class ScanLayout:
     metric : ``"smooth"`` or ``"euclidean"``.  eta, sigma : η, σ, m.  d_min : m².
     slots : region slots.  capacity : points per slot.  dim : p, 3 or 2.
     window : w, m (0: off).  sensor_range : r_s, m.
+    moving : each slot also carries the region's predicted velocity v (p,), m/s, after
+        ``active``; the region at τ s after the scan is the scanned cloud moved by v·τ.
     """
 
     metric: str
@@ -290,17 +294,19 @@ class ScanLayout:
     dim: int = 3
     window: float = 0.0
     sensor_range: float = 3.0
+    moving: bool = False
 
     @property
     def size(self) -> int:
         """Number of parameters of a whole scan."""
         per_point = self.dim + 1
-        return self.slots * (self.capacity * per_point + (2 if self.metric == "smooth" else 1))
+        per_slot = self.capacity * per_point + (2 if self.metric == "smooth" else 1)
+        return self.slots * (per_slot + (self.dim if self.moving else 0))
 
     def with_capacity(self, capacity: int) -> ScanLayout:
         return dataclasses.replace(self, capacity=capacity)
 
-    def pack(self, visible: Sequence[np.ndarray], position) -> np.ndarray:
+    def pack(self, visible: Sequence[np.ndarray], position, velocities=None) -> np.ndarray:
         """Pack a LiDAR scan into the parameter layout.
 
         Parameters
@@ -310,6 +316,8 @@ class ScanLayout:
         position : (p,) position of the vehicle, m. If more regions are visible than there are
             slots, the nearest regions are kept; if a region shows more points than a slot
             holds, the nearest points are kept.
+        velocities : with a ``moving`` layout, one (p,) predicted velocity per region of
+            ``visible``, m/s (``None``: all at rest).
 
         Returns
         -------
@@ -317,31 +325,44 @@ class ScanLayout:
         """
         slots, cap, dim = self.slots, self.capacity, self.dim
         ref = as_vector("position", position, dim)
-        seen = [v for v in check_visible(visible, dim) if len(v)]
-        sq = [np.sum((v - ref) ** 2, axis=1) for v in seen]
-        presence = [None] * len(seen)
-        if self.window > 0 and self.metric == "smooth":
-            presence = [dist.sensing_window(np.sqrt(s), self.sensor_range, self.window)
-                        for s in sq]
-            inside = [np.isfinite(p) for p in presence]
-            seen, sq, presence = zip(*[(v[k], s[k], p[k]) for v, s, p, k in
-                                       zip(seen, sq, presence, inside) if k.any()]) \
-                if any(k.any() for k in inside) else ((), (), ())
+        visible = check_visible(visible, dim)
+        if velocities is not None and not self.moving:
+            raise ValueError("velocities need a layout built for moving regions (a controller "
+                             "built with simulation.prediction 'oracle' or 'kalman')")
+        if velocities is None:
+            velocities = [np.zeros(dim)] * len(visible)
+        elif len(velocities) != len(visible):
+            raise ValueError(f"velocities must hold one ({dim},) array per region of visible "
+                             f"({len(visible)}), got {len(velocities)}")
+        # Per region in view: (points, squared ranges, ln ψ or None, velocity).
+        seen = []
+        for i, (v, vel) in enumerate(zip(visible, velocities)):
+            if not len(v):
+                continue
+            sq = np.sum((v - ref) ** 2, axis=1)
+            log_p = None
+            if self.window > 0 and self.metric == "smooth":
+                log_p = dist.sensing_window(np.sqrt(sq), self.sensor_range, self.window)
+                inside = np.isfinite(log_p)
+                if not inside.any():
+                    continue
+                v, sq, log_p = v[inside], sq[inside], log_p[inside]
+            seen.append((v, sq, log_p, as_vector(f"velocities[{i}]", vel, dim)))
         if len(seen) > slots:
-            order = np.argsort([s.min() for s in sq])[:slots]
-            seen, sq = [seen[i] for i in order], [sq[i] for i in order]
-            presence = [presence[i] for i in order]
+            order = np.argsort([s[1].min() for s in seen])[:slots]
+            seen = [seen[i] for i in order]
         blocks = []
         for slot in range(slots):
             pts = np.full((cap, dim), _FAR_AWAY)
             log_w = np.full(cap, PAD_LOG_WEIGHT)
             mask = np.zeros(cap)
+            velocity = np.zeros(dim)
             if slot < len(seen):
-                cloud = seen[slot]
-                weights = dist.CloudWeights.from_cloud(cloud, self.sigma, presence[slot])
+                cloud, sq, log_p, velocity = seen[slot]
+                weights = dist.CloudWeights.from_cloud(cloud, self.sigma, log_p)
                 keep = np.arange(len(cloud))
                 if len(cloud) > cap:
-                    keep = np.sort(np.argsort(sq[slot])[:cap])
+                    keep = np.sort(np.argsort(sq)[:cap])
                 pts[: len(keep)] = cloud[keep]
                 log_w[: len(keep)] = weights.log_weights[keep]
                 mask[: len(keep)] = 1.0
@@ -349,17 +370,22 @@ class ScanLayout:
             else:
                 log_w[0], mask[0] = 0.0, 1.0
                 log_v, active = 0.0, 0.0
+            tail = [velocity] if self.moving else []
             if self.metric == "smooth":
-                blocks.append(np.concatenate([pts.ravel(order="F"), log_w, [log_v, active]]))
+                blocks.append(np.concatenate([pts.ravel(order="F"), log_w, [log_v, active],
+                                              *tail]))
             else:
-                blocks.append(np.concatenate([pts.ravel(order="F"), mask, [active]]))
+                blocks.append(np.concatenate([pts.ravel(order="F"), mask, [active], *tail]))
         return np.concatenate(blocks)
 
     def region_barrier(self):
         """Symbolic parameters of one region slot and β(y) = D(y) − d_min (eq. 17).
 
-        Returns ``(params, beta)``: ``params`` is the slot's parameter column (its last entry
-        is the ``active`` flag) and ``beta(y)`` the CasADi expression for a (p, 1) output y.
+        Returns ``(params, beta, active)``: ``params`` is the slot's parameter column,
+        ``beta(y, tau)`` the CasADi expression for a (p, 1) output y at ``tau`` seconds after
+        the scan, and ``active`` the slot's flag. A moving region is the scanned cloud
+        translated by v·τ, and for a rigid translation D^{A+c}(y) = D^A(y − c): β(y − v·τ).
+        Static (the paper), ``tau`` is ignored.
         """
         cap, dim = self.capacity, self.dim
         pts = ca.SX.sym("points", cap, dim)
@@ -375,17 +401,22 @@ class ScanLayout:
             d = dist.euclidean_distance_symbolic(y, pts, mask)
             extra = [mask]
         beta_fn = ca.Function("beta", [y, pts, *extra], [d - self.d_min])
-        params = ca.vertcat(ca.vec(pts), *extra, active)
-        return params, lambda yy: beta_fn(yy, pts, *extra)
+        if not self.moving:
+            params = ca.vertcat(ca.vec(pts), *extra, active)
+            return params, lambda yy, tau=0.0: beta_fn(yy, pts, *extra), active
+        velocity = ca.SX.sym("velocity", dim)
+        params = ca.vertcat(ca.vec(pts), *extra, active, velocity)
+        return params, lambda yy, tau=0.0: beta_fn(yy - velocity * tau, pts, *extra), active
 
     def barriers(self):
         """Every slot at once: ``(params, beta, active)`` with ``params`` the scan's parameter
-        column, ``beta(y)`` the (slots,) expression of β at output y and ``active`` the
-        (slots,) flags."""
+        column, ``beta(y, tau)`` the (slots,) expression of β at output y, ``tau`` s after the
+        scan, and ``active`` the (slots,) flags."""
         slots = [self.region_barrier() for _ in range(self.slots)]
         params = ca.vertcat(*[s[0] for s in slots])
-        active = ca.vertcat(*[s[0][-1] for s in slots])
-        return params, (lambda y: ca.vertcat(*[s[1](y) for s in slots])), active
+        active = ca.vertcat(*[s[2] for s in slots])
+        return (params, (lambda y, tau=0.0: ca.vertcat(*[s[1](y, tau) for s in slots])),
+                active)
 
 
 # --- what every solver returns and offers ------------------------------------------------------

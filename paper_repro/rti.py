@@ -100,8 +100,8 @@ class RealTimeNMPC:
 
     # --- public ------------------------------------------------------------------------------
 
-    def solve(self, x0, target, visible=(), previous: NMPCSolution | None = None
-              ) -> NMPCSolution:
+    def solve(self, x0, target, visible=(), previous: NMPCSolution | None = None,
+              velocities=None) -> NMPCSolution:
         """Same contract as :meth:`paper_repro.nmpc.TrackingNMPC.solve`, except the warm start:
         the previous plan moved to the current position (:meth:`NMPCSolution.reanchored`).
         With one iteration per instant that keeps the closed loop within about a millimetre
@@ -115,7 +115,8 @@ class RealTimeNMPC:
         target = as_vector("target", target, ocp.ny)
         visible = check_visible(visible, ocp.ny)
         lin, scan = self.ladder.for_scan(visible)
-        params = np.concatenate([target, self.ladder.pack(visible, ocp.output(x0), scan)])
+        params = np.concatenate([target, self.ladder.pack(visible, ocp.output(x0), scan,
+                                                          velocities)])
         if previous is None:
             guess = self.hover_guess(x0)
         elif self._position:
@@ -160,9 +161,9 @@ class RealTimeNMPC:
         """Rest where the vehicle is for the whole horizon (the quadrotor: hover)."""
         return self.ocp.rest(x0)
 
-    def obstacle_parameters(self, visible, position) -> np.ndarray:
+    def obstacle_parameters(self, visible, position, velocities=None) -> np.ndarray:
         """The LiDAR scan in the parameter layout of the config's capacity."""
-        return self.ocp.scan.pack(visible, position)
+        return self.ocp.scan.pack(visible, position, velocities)
 
 
 # --- the linearisation -------------------------------------------------------------------------
@@ -187,7 +188,15 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
     scan_params, beta_slots, active = scan.barriers()
     params = ca.vertcat(yt, scan_params)
     y = ca.SX.sym("y", ocp.ny)
-    beta = ca.Function("beta", [y, params], [beta_slots(y)])
+    # β at τ s after the scan (moving regions); static, τ does not enter (the paper's C).
+    tau = ca.SX.sym("tau")
+    if scan.moving:
+        beta_fn = ca.Function("beta", [y, params, tau], [beta_slots(y, tau)])
+    else:
+        beta_fn = ca.Function("beta", [y, params], [beta_slots(y)])
+
+    def beta(yy, pp, when=0.0):
+        return beta_fn(yy, pp, when) if scan.moving else beta_fn(yy, pp)
 
     def gn(residual, penalties, v):
         """Gauss-Newton Hessian and exact gradient of ‖r‖² + μ Σ active·F(g)."""
@@ -216,21 +225,21 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
     x = ca.SX.sym("x", nx)
     s = ca.SX.sym("s", ns)
     vj = ca.vertcat(x, a, s, u)
-    bj = beta(h(x), params)
+    bj = beta(h(x), params, tau)  # stage j: τ = j·h
     gj = [(ocp.violation(s[i], bj[i]), active[i]) for i in range(ns)]
     hj, qj = gn(ocp.tracking_residual(x, u, x_a, u_a), gj, vj)
     phij = ca.vertcat(f(x, u), a, bj)
     x_prev = ca.SX.sym("x_prev", nx)
-    inner = ca.Function("inner", [x, a, s, u, params],
+    inner = ca.Function("inner", [x, a, s, u, params, tau],
                         [ca.vec(hj), qj, ca.vec(ca.jacobian(phij, vj)), phij])
-    h_, q_, ab_, phi_ = inner(x, a, beta(h(x_prev), params), u, params)
-    stage = ca.Function("stage", [x_prev, x, a, u, params], [h_, q_, ab_, phi_])
+    h_, q_, ab_, phi_ = inner(x, a, beta(h(x_prev), params, tau - ocp.step), u, params, tau)
+    stage = ca.Function("stage", [x_prev, x, a, u, params, tau], [h_, q_, ab_, phi_])
 
     # Stage N: v = (x, a, s); cost T‖y_a − y_t‖², the last barrier terms; x_N = x_a (and
     # x_a = f(x_a, u_a) without a parametrisation).
     vn = ca.vertcat(x, a, s)
     y_a = h(x_a)
-    bn, ba = beta(h(x), params), beta(y_a, params)
+    bn, ba = beta(h(x), params, tau), beta(y_a, params, tau + ocp.step)
     gn_terms = []
     for i in range(ns):
         gn_terms += [(ocp.violation(s[i], bn[i]), active[i]),
@@ -238,10 +247,10 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
                      (ocp.equilibrium_violation(ba[i]), active[i])]
     hn, qn = gn(ocp.offset_residual(y_a, yt), gn_terms, vn)
     eq_res = ca.vertcat(x - x_a, ocp.equilibrium_rows(a))
-    inner_n = ca.Function("inner_n", [x, a, s, params],
+    inner_n = ca.Function("inner_n", [x, a, s, params, tau],
                           [ca.vec(hn), qn, ca.vec(ca.jacobian(eq_res, vn)), eq_res])
-    hN, qN, jN, eN = inner_n(x, a, beta(h(x_prev), params), params)
-    stage_n = ca.Function("stage_n", [x_prev, x, a, params], [hN, qN, jN, eN])
+    hN, qN, jN, eN = inner_n(x, a, beta(h(x_prev), params, tau - ocp.step), params, tau)
+    stage_n = ca.Function("stage_n", [x_prev, x, a, params, tau], [hN, qN, jN, eN])
 
     # Whole horizon.
     X0 = ca.MX.sym("x0", nx)
@@ -252,8 +261,9 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
     h0m, q0m, j0m, phi0m = stage0(X0, A[:, 0], U[:, 0], P)
     mid = stage.map(n - 1, "serial")
     xprev = ca.horzcat(X0, X[:, : n - 2])
-    hm, qm, jm, phim = mid(xprev, X[:, : n - 1], A[:, 1:n], U[:, 1:], P)
-    hN_, qN_, jN_, eN_ = stage_n(X[:, n - 2], X[:, n - 1], A[:, n], P)
+    times = ca.DM(np.arange(1, n) * ocp.step).T  # τ_j = j·h of stages 1..N−1
+    hm, qm, jm, phim = mid(xprev, X[:, : n - 1], A[:, 1:n], U[:, 1:], P, times)
+    hN_, qN_, jN_, eN_ = stage_n(X[:, n - 2], X[:, n - 1], A[:, n], P, n * ocp.step)
     # Gap residuals φ(z_j, u_j) − z_{j+1}. The iterate's s_{j+1} is always β(y_j) itself (it
     # is never stored, only recomputed), so the s part of every gap is exactly zero.
     zero_s = ca.MX.zeros(ns, 1)
@@ -316,11 +326,11 @@ class LinearisationLadder:
                 return fn, scan
         return self.rungs[-1][1], self.rungs[-1][0]  # the scan keeps the nearest points
 
-    def pack(self, visible, position, scan: ScanLayout) -> np.ndarray:
+    def pack(self, visible, position, scan: ScanLayout, velocities=None) -> np.ndarray:
         """:meth:`ScanLayout.pack`, except that the packing of an empty scan, the same wherever
         the vehicle is, is made once per capacity (empty scans are common: nothing in range)."""
         if any(len(v) for v in visible):
-            return scan.pack(visible, position)
+            return scan.pack(visible, position, velocities)
         if scan.capacity not in self._empty:
             self._empty[scan.capacity] = scan.pack((), position)
         return self._empty[scan.capacity]

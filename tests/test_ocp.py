@@ -125,7 +125,7 @@ def test_padding_leaves_the_barrier_unchanged():
         y = rng.normal(size=dim) * 0.3
         for metric in ("smooth", "euclidean"):
             layout = ScanLayout(metric, 0.3, 0.8, 1.0, slots=1, capacity=16, dim=dim)
-            params, beta = layout.region_barrier()
+            params, beta, _ = layout.region_barrier()
             ys = ca.SX.sym("y", dim)
             fn = ca.Function("b", [ys, params], [beta(ys)])
             value = float(fn(y, layout.pack([cloud], y)))

@@ -31,7 +31,7 @@ def _distance_with_window(point_range, y, others, window):
     moving = np.array([[point_range, 0.0, 0.0]])
     visible = np.vstack([others, moving]) if point_range < R_S else others  # the LiDAR
     packed = layout.pack([visible], np.zeros(3))
-    params, beta = layout.region_barrier()
+    params, beta, _ = layout.region_barrier()
     ys = ca.SX.sym("y", 3)
     b = beta(ys)
     fn = ca.Function("d", [ys, params], [b, ca.gradient(b, ys)])
