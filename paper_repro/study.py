@@ -108,19 +108,22 @@ class StudyResult:
 # --- the studies ----------------------------------------------------------------------------
 
 def passage_config(base: Config | None = None, seed: int = 0, max_steps: int = PASSAGE_STEPS,
-                   **distance) -> Config:
-    """``base`` flying a passage through the random scene of ``seed``; ``distance`` overrides
-    fields of :class:`~paper_repro.config.DistanceParams` (``metric``, ``eta``, ``sigma``)."""
+                   scenario: str = "random", **distance) -> Config:
+    """``base`` flying a passage through the random scene of ``seed`` (``scenario``:
+    ``"random"``, or ``"random-crossing"`` whose regions move across the line); ``distance``
+    overrides fields of :class:`~paper_repro.config.DistanceParams` (``metric``, ``eta``,
+    ``sigma``)."""
     base = base or Config()
     return dataclasses.replace(
         base, distance=dataclasses.replace(base.distance, **distance),
-        simulation=dataclasses.replace(base.simulation, scenario="random", kind="passage",
+        simulation=dataclasses.replace(base.simulation, scenario=scenario, kind="passage",
                                        seed=int(seed), max_steps=int(max_steps)))
 
 
 def passage_spec(seed: int, metric: str = "smooth", eta: float | None = None,
                  sigma: float | None = None, max_steps: int = PASSAGE_STEPS,
-                 base: Config | None = None, tag: str = "") -> RunSpec:
+                 base: Config | None = None, tag: str = "", scenario: str = "random"
+                 ) -> RunSpec:
     """A passage through random scene ``seed``; the name says what differs from ``base`` (and
     ``tag`` anything else a study varies), so the same flight has the same name (and cache
     folder) in every study that asks for it."""
@@ -129,7 +132,7 @@ def passage_spec(seed: int, metric: str = "smooth", eta: float | None = None,
     if metric == "smooth":
         over.update(eta=base.distance.eta if eta is None else eta,
                     sigma=base.distance.sigma if sigma is None else sigma)
-    cfg = passage_config(base, seed, max_steps, **over)
+    cfg = passage_config(base, seed, max_steps, scenario, **over)
     name = (f"passage-smooth-eta{cfg.distance.eta:g}-sigma{cfg.distance.sigma:g}"
             if metric == "smooth" else f"passage-{metric}") + (f"-{tag}" if tag else "") + \
         f"-s{seed:03d}"
@@ -248,9 +251,39 @@ def sensing_window(quick: bool = False, scenes: int | None = None,
                  f"smooth metric, sensing window w in {SENSING_WINDOWS} m, {n} passages")
 
 
+PREDICTIONS = ("static", "oracle", "kalman")
+"""How the NMPC predicts a moving region (``SimulationParams.prediction``): not at all (the
+paper), with its true velocity, or with a Kalman filter on its visible centroid."""
+
+
+def moving_obstacles(quick: bool = False, scenes: int | None = None,
+                     base: Config | None = None) -> Study:
+    """Random crossings (``"random-crossing"``: every region moves across the line at
+    0.5–1.5 m/s) × the predictions of :data:`PREDICTIONS` × {smoothed, Euclidean}, on
+    ``scenes`` passages (30; 2 with ``quick``). Does the static assumption collide where
+    prediction does not?"""
+    n = scenes if scenes is not None else (2 if quick else 30)
+    _require_count("scenes", n)
+    base = base or Config()
+    steps = QUICK_STEPS if quick else PASSAGE_STEPS
+    specs = []
+    for prediction in PREDICTIONS:
+        cfg = dataclasses.replace(base, simulation=dataclasses.replace(
+            base.simulation, prediction=prediction))
+        for metric in ("smooth", "euclidean"):
+            for seed in range(n):
+                spec = passage_spec(seed, metric, max_steps=steps, base=cfg,
+                                    tag=f"crossing-{prediction}", scenario="random-crossing")
+                specs.append(dataclasses.replace(
+                    spec, labels=spec.labels + (("prediction", prediction),)))
+    return Study("moving_obstacles" + ("-quick" if quick else ""), tuple(specs),
+                 f"random crossings, prediction in {PREDICTIONS} x both metrics, {n} passages")
+
+
 STUDIES: dict[str, Callable[..., Study]] = {"monte_carlo": monte_carlo, "eta_sweep": eta_sweep,
                                             "sensor_noise": sensor_noise,
-                                            "sensing_window": sensing_window}
+                                            "sensing_window": sensing_window,
+                                            "moving_obstacles": moving_obstacles}
 """The studies ``python -m paper_repro study NAME`` knows."""
 
 
