@@ -1,6 +1,7 @@
 """Closed-loop solve time and agreement of the NMPC solvers.
 
     python benchmarks/solver_speed.py --scenario encounter --steps 2000
+    python benchmarks/solver_speed.py --scenario crossing --steps 3000   # a moving region
 
 Flies the same mission with the IPOPT reference and with the structure-exploiting solver
 (several SQP iteration counts; its QPs by the warm-started Riccati solver or, ``rti-hpipm``, by
@@ -36,15 +37,22 @@ VARIANTS = {  # name -> (solver, controller options)
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--scenario", default="encounter", choices=("encounter", "paper"))
+    parser.add_argument("--scenario", default="encounter",
+                        choices=("encounter", "paper", "crossing", "oncoming"))
+    parser.add_argument("--prediction", default=None, choices=("static", "oracle", "kalman"),
+                        help="how moving regions are predicted (default: oracle for the "
+                             "moving scenes, static otherwise)")
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--metric", default="smooth", choices=("smooth", "euclidean"))
     parser.add_argument("--solvers", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
     args = parser.parse_args()
 
     base = Config()
+    prediction = args.prediction or ("static" if args.scenario in ("encounter", "paper")
+                                     else "oracle")
     base = dataclasses.replace(
-        base, simulation=dataclasses.replace(base.simulation, scenario=args.scenario),
+        base, simulation=dataclasses.replace(base.simulation, scenario=args.scenario,
+                                             prediction=prediction),
         distance=dataclasses.replace(base.distance, metric=args.metric))
     runs = {}
     for name in args.solvers:
@@ -73,7 +81,7 @@ def main() -> None:
                      "hpipm_qps": r.meta.get("qp_counts", {}).get("hpipm", 0),
                      "min_clearance_m": float(r.clearance.min())})
 
-    print(f"\n{args.scenario}, {args.metric} metric, {args.steps} steps, "
+    print(f"\n{args.scenario} ({prediction} prediction), {args.metric} metric, {args.steps} steps, "
           f"{platform.processor() or platform.machine()} ({_cpu_name()}), "
           f"{__import__('os').cpu_count()} cores")
     print_table(rows, [("solver", "solver", "s"), ("median_ms", "median ms", ".2f"),

@@ -478,9 +478,10 @@ class Controller(Protocol):
     horizon: int
 
     def solve(self, x0, target, visible: Sequence[np.ndarray] = (),
-              previous: NMPCSolution | None = None) -> NMPCSolution:
+              previous: NMPCSolution | None = None, velocities=None) -> NMPCSolution:
         """Solve from state ``x0`` (n_x,) towards output set-point ``target`` (p,), m, with the
-        LiDAR scan ``visible`` (see :func:`check_visible`); ``previous`` warm-starts."""
+        LiDAR scan ``visible`` (see :func:`check_visible`); ``previous`` warm-starts;
+        ``velocities`` (moving regions): one predicted (p,) velocity per region, m/s."""
 
     def reset(self) -> None:
         """Forget what is carried from one solve to the next (a new flight starts clean)."""
