@@ -25,10 +25,18 @@ obliquely. The first region is placed on the line, the others up to ``lateral_sp
 either side of it. Every region covers the flight altitude; its top is at most
 ``altitude[1] + height[1]`` (16 m by default), so a detour over the field always exists, and
 its width is bounded, so a detour sideways exists too.
+
+Moving variant. ``random_scene(seed, moving=True)`` (``make_scene("random-crossing", seed)``)
+is the same field, clouds included, with every region crossing the flight line: each gets a
+constant horizontal velocity perpendicular to the line, of speed uniform in ``speed``
+(0.5-1.5 m/s) and random sign, timed so that its centre is on the line when the UAV, flying
+straight, is expected to reach it (give or take ``crossing_spread``, 5 s). The draws come after
+the layout's, from the same generator, so the static scene of a seed is unchanged.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -40,6 +48,7 @@ from .scene import (
     Box,
     Cylinder,
     Difference,
+    Motion,
     Region,
     Scene,
     Union,
@@ -101,6 +110,14 @@ class RandomSceneParams:
     kinds : region kinds to draw from, a non-empty subset of :data:`REGION_KINDS`; the
         region that blocks the line and the others are drawn uniformly among them.
     max_attempts : int ≥ 1, layouts tried before :func:`random_scene` gives up. Default 500.
+    speed : (low, high), m/s, speed of a region of a moving scene (``moving=True``) across the
+        line, drawn uniformly. Default (0.5, 1.5).
+    approach_time : s, the UAV's expected speed is (distance to target)/``approach_time``
+        (150 s under the printed weights): flying straight from rest it is s(t) = L·(1 −
+        e^{−t/approach_time}) along a line of length L, which times the crossings of a
+        moving scene. Default 150 s.
+    crossing_spread : s, in a moving scene region i's centre crosses the line at
+        T_i + U(−spread, spread), T_i the time s(t) reaches the region's centre. Default 5 s.
     """
 
     regions: tuple[int, int] = (2, 6)
@@ -123,6 +140,9 @@ class RandomSceneParams:
     workspace_margin: float = 1.0
     kinds: tuple[str, ...] = REGION_KINDS
     max_attempts: int = 500
+    speed: tuple[float, float] = (0.5, 1.5)
+    approach_time: float = 150.0
+    crossing_spread: float = 5.0
 
     def __post_init__(self):
         if not (_is_pair(self.regions)
@@ -165,9 +185,17 @@ class RandomSceneParams:
                              f"got {self.kinds!r}")
         if not (isinstance(self.max_attempts, int) and self.max_attempts >= 1):
             raise ValueError(f"max_attempts must be an integer ≥ 1, got {self.max_attempts!r}")
+        if not (_is_pair(self.speed) and all(
+                isinstance(v, (int, float, np.integer, np.floating)) and math.isfinite(v)
+                for v in self.speed) and 0.0 < self.speed[0] <= self.speed[1] <= 20.0):
+            raise ValueError(f"speed must be a pair (low, high) with 0 < low ≤ high ≤ 20 m/s, "
+                             f"got {self.speed!r}")
+        _require_number("approach_time", self.approach_time, 0.0, 10_000.0, low_open=True)
+        _require_number("crossing_spread", self.crossing_spread, 0.0, 1_000.0)
 
 
-def random_scene(seed: int, params: RandomSceneParams | None = None) -> Scene:
+def random_scene(seed: int, params: RandomSceneParams | None = None,
+                 moving: bool = False) -> Scene:
     """A random field of regions across a straight flight, rebuilt exactly from ``seed``.
 
     Parameters
@@ -175,6 +203,10 @@ def random_scene(seed: int, params: RandomSceneParams | None = None) -> Scene:
     seed : int ≥ 0. Seeds ``numpy.random.default_rng`` for the layout and, as
         ``Scene(seed=seed)``, the Halton clouds (region i uses ``seed + i``).
     params : the distributions of the layout (default :class:`RandomSceneParams`).
+    moving : ``False`` (static regions) or ``True``: the same field, clouds included, named
+        ``f"random-crossing-{seed}"``, each region with a constant velocity across the line
+        (see :func:`crossing_motions`); its stored clouds are the static layout's, where each
+        region is at its crossing time offset by its lateral position.
 
     Returns
     -------
@@ -205,12 +237,56 @@ def random_scene(seed: int, params: RandomSceneParams | None = None) -> Scene:
     # geometry and the counts and kinds keep their uniform distributions.
     count = int(rng.integers(params.regions[0], params.regions[1] + 1))
     kinds = tuple(params.kinds[int(k)] for k in rng.integers(len(params.kinds), size=count))
+    if not isinstance(moving, (bool, np.bool_)):
+        raise ValueError(f"moving must be a bool, got {moving!r}")
     for _ in range(params.max_attempts):
         scene = _try_layout(rng, seed, kinds, params)
         if scene is not None:
+            if moving:  # drawn after the layout: the static scene of a seed is unchanged
+                scene = dataclasses.replace(scene, name=f"random-crossing-{seed}",
+                                            motions=crossing_motions(scene, rng, params))
             return scene
     raise ValueError(f"random_scene({seed}): no valid layout in {params.max_attempts} "
                      f"attempts; loosen the parameters (run_out, depth, sizes or margins)")
+
+
+def crossing_motions(scene: Scene, rng: np.random.Generator,
+                     params: RandomSceneParams | None = None) -> tuple[Motion, ...]:
+    """One constant-velocity :class:`~paper_repro.scene.Motion` per region of a one-target
+    scene, each crossing the straight line from the start to the target.
+
+    For region i, with u the unit heading start → target, n = (−u_y, u_x, 0) the horizontal
+    normal, L the line's length, a_i and b_i the along and across coordinates of the centre
+    of its cloud (mean point) relative to the start, drawn from ``rng`` in this order:
+
+    * speed s_i ~ U(``speed``), m/s, and a direction ±n (each with probability ½);
+    * the crossing time t_i = T_i + U(−``crossing_spread``, ``crossing_spread``), s, where
+      T_i = −``approach_time``·ln(1 − a_i/L) is when the UAV, flying straight from rest at
+      the expected speed, reaches the region's centre.
+
+    The region's centre is on the line at t_i: c_i(t) = ±s_i·n·(t − t_i) − b_i·n. The
+    motions keep the regions at their heights and along-line positions, so the start and the
+    target stay as far from every region as in the static layout, at every t.
+    """
+    params = RandomSceneParams() if params is None else params
+    start = np.asarray(scene.start, float)
+    target = np.atleast_2d(np.asarray(scene.targets, float))[0]
+    length = float(np.linalg.norm(target - start))
+    u = (target - start) / length
+    n = np.array([-u[1], u[0], 0.0])
+    n /= np.linalg.norm(n)
+    motions = []
+    for cloud in scene.clouds:
+        speed = float(rng.uniform(*params.speed))
+        velocity = speed * n * (1.0 if rng.random() < 0.5 else -1.0)
+        centre = np.mean(cloud, axis=0) - start
+        along = min(max(float(centre @ u), 0.0), 0.99 * length)
+        arrival = -params.approach_time * math.log(1.0 - along / length)
+        crossing = arrival + float(rng.uniform(-params.crossing_spread,
+                                               params.crossing_spread))
+        motions.append(Motion.constant(_floats(velocity),
+                                       _floats(-velocity * crossing - float(centre @ n) * n)))
+    return tuple(motions)
 
 
 def passage_progress(scene: Scene, y) -> float | np.ndarray:

@@ -5,6 +5,11 @@ shapes such as an L-wall or a U-channel are easy) filled with a scrambled, seede
 sequence (``scipy.stats.qmc.Halton``) at a given density, as in Section V. A
 :class:`Scene` holds the regions' clouds, the start and the sequence of targets; a
 :class:`Lidar` returns, per region, the points inside a sphere of radius r_s around the UAV.
+
+Regions are static, as in the paper, unless the scene gives them a :class:`Motion`: a rigid
+translation c(t) of the region's stored points, so that at time t region i is the cloud
+``clouds[i] + c_i(t)`` (:meth:`Scene.clouds_at`); the LiDAR then sees each region where it is
+at the time of the scan.
 """
 
 from __future__ import annotations
@@ -112,6 +117,92 @@ class Difference:
         return self.outer.bounds()
 
 
+# --- motion ---------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Motion:
+    """A rigid translation of a region over time: a piecewise-linear offset c(t) ∈ R³.
+
+    At time t (s) the region's points are its stored points + c(t) (m); the region does not
+    rotate or deform.
+
+    Attributes
+    ----------
+    times : (n,) s, strictly increasing finite times, n ≥ 1 (stored as a tuple of floats).
+    offsets : (n, 3) m, c at each of ``times`` (stored as a tuple of 3-tuples of floats).
+
+    Between two times c is linear. Before the first time c is the first offset (at rest);
+    after the last it goes on with the last segment's velocity (at rest when n = 1), so
+    ``Motion.constant(v)`` moves for ever.
+    """
+
+    times: tuple
+    offsets: tuple
+
+    def __post_init__(self):
+        times = self.times
+        if not (isinstance(times, (tuple, list, np.ndarray)) and np.ndim(times) == 1
+                and len(times) >= 1 and all(_is_number(t) and math.isfinite(t) for t in times)):
+            raise ValueError(f"Motion.times must be a non-empty sequence of finite numbers (s), "
+                             f"got {times!r}")
+        t = np.asarray(times, float)
+        if np.any(np.diff(t) <= 0):
+            raise ValueError(f"Motion.times must be strictly increasing (s), got {times!r}")
+        offsets = self.offsets
+        if not (isinstance(offsets, (tuple, list, np.ndarray)) and len(offsets) == len(t)):
+            raise ValueError(f"Motion.offsets must hold one (3,) offset (m) per time "
+                             f"({len(t)}), got {offsets!r}")
+        for i, c in enumerate(offsets):
+            _require_point(f"Motion.offsets[{i}]", c)
+        c = np.asarray(offsets, float).reshape(len(t), 3)
+        object.__setattr__(self, "times", tuple(float(v) for v in t))
+        object.__setattr__(self, "offsets", tuple(tuple(float(v) for v in row) for row in c))
+        # Velocity of the segment that starts at each time (the last one goes on for ever).
+        v = np.zeros((len(t), 3))
+        if len(t) > 1:
+            v[:-1] = np.diff(c, axis=0) / np.diff(t)[:, None]
+            v[-1] = v[-2]
+        object.__setattr__(self, "_t", t)
+        object.__setattr__(self, "_c", c)
+        object.__setattr__(self, "_v", v)
+
+    @classmethod
+    def constant(cls, velocity, start_offset=(0.0, 0.0, 0.0)) -> Motion:
+        """Constant ``velocity`` (3,) m/s for all t ≥ 0, from ``start_offset`` (3,) m at t = 0:
+        c(t) = start_offset + velocity·t (at rest at ``start_offset`` before t = 0)."""
+        _require_point("Motion.constant velocity", velocity)
+        _require_point("Motion.constant start_offset", start_offset)
+        start = np.asarray(start_offset, float)
+        return cls((0.0, 1.0), (start, start + np.asarray(velocity, float)))
+
+    def _segment(self, t) -> int:
+        if not (_is_number(t) and math.isfinite(t)):
+            raise ValueError(f"time t must be a finite number (s), got {t!r}")
+        return int(np.searchsorted(self._t, float(t), side="right")) - 1
+
+    def offset(self, t: float) -> np.ndarray:
+        """c(t), (3,) m."""
+        i = self._segment(t)
+        if i < 0:
+            return self._c[0].copy()
+        return self._c[i] + self._v[i] * (float(t) - self._t[i])
+
+    def velocity(self, t: float) -> np.ndarray:
+        """dc/dt at t, (3,) m/s: the velocity of the segment t lies in (of the segment that
+        starts at t, at a breakpoint); zero before the first time."""
+        i = self._segment(t)
+        return np.zeros(3) if i < 0 else self._v[i].copy()
+
+    def to_dict(self) -> dict:
+        """JSON-able: ``{"times": [...], "offsets": [[x, y, z], ...]}``."""
+        return {"times": list(self.times), "offsets": [list(c) for c in self.offsets]}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> Motion:
+        """Inverse of :meth:`to_dict`."""
+        return cls(tuple(data["times"]), tuple(tuple(c) for c in data["offsets"]))
+
+
 # --- regions and scenes ---------------------------------------------------------------------
 
 @dataclass(frozen=True)
@@ -163,7 +254,11 @@ class Scene:
         for a *passage*: the run ends once ``(y − point)·direction ≥ 0``.
     clouds : tuple of (m_i, 3) arrays, m. Sampled from the regions when omitted; given when a
         scene is rebuilt from a saved result, so that a run redraws against its own points
-        whatever the generators do later.
+        whatever the generators do later. For a moving region, the points where its offset
+        is zero (each scene's builder says when that is).
+    motions : ``None`` (every region static, the paper), or one :class:`Motion` or ``None``
+        per region: region i is at ``clouds[i] + motions[i].offset(t)`` at time t. A tuple of
+        ``None`` only is stored as ``None``.
     """
 
     name: str
@@ -173,6 +268,7 @@ class Scene:
     seed: int = 7
     finish: tuple | None = None
     clouds: tuple | None = field(default=None, repr=False, compare=False)
+    motions: tuple | None = None
 
     def __post_init__(self):
         if not (isinstance(self.name, str) and self.name):
@@ -208,6 +304,20 @@ class Scene:
             if len(c) == 0:
                 raise ValueError(f"region {r.name!r} holds no point at density {r.density}")
         object.__setattr__(self, "clouds", clouds)
+        object.__setattr__(self, "motions", _motions("motions", self.motions, len(self.regions)))
+
+    @property
+    def is_moving(self) -> bool:
+        """True when some region has a :class:`Motion`."""
+        return self.motions is not None
+
+    def clouds_at(self, t: float) -> tuple:
+        """The regions' clouds at time ``t`` (s): tuple of (m_i, 3) arrays, m (the stored
+        clouds themselves for static regions)."""
+        if not self.is_moving:
+            return self.clouds
+        return tuple(c if m is None else c + m.offset(t)
+                     for c, m in zip(self.clouds, self.motions, strict=True))
 
     @property
     def all_points(self) -> np.ndarray:
@@ -215,25 +325,40 @@ class Scene:
         return np.concatenate(self.clouds) if self.clouds else np.zeros((0, 3))
 
     def fingerprint(self) -> str:
-        """SHA-256 (hex) of the start, the targets, the finish line and every cloud point:
-        two scenes with the same fingerprint are flown identically."""
+        """SHA-256 (hex) of the start, the targets, the finish line, every cloud point and, for
+        a moving scene only, the motions: two scenes with the same fingerprint are flown
+        identically (and a static scene's fingerprint is the one it had before motions)."""
         digest = hashlib.sha256()
         finish = np.zeros((0, 3)) if self.finish is None else np.asarray(self.finish, float)
         for block in (self.start, self.targets, finish, *self.clouds):
             digest.update(np.ascontiguousarray(block, dtype=np.float64).tobytes())
+        if self.is_moving:
+            digest.update(b"motions")
+            for m in self.motions:
+                if m is None:
+                    digest.update(b"static")
+                else:
+                    digest.update(b"motion")
+                    digest.update(np.asarray(m.times, np.float64).tobytes())
+                    digest.update(np.asarray(m.offsets, np.float64).tobytes())
         return digest.hexdigest()
 
     def to_dict(self) -> dict:
         """JSON-able description (regions as shape trees); the clouds are stored apart, as
-        arrays (see :meth:`from_dict`)."""
-        return {"name": self.name, "seed": int(self.seed),
+        arrays (see :meth:`from_dict`). A moving scene adds ``"motions"`` (one
+        :meth:`Motion.to_dict` or ``None`` per region); a static one has no such key, so its
+        description is the one it had before motions."""
+        data = {"name": self.name, "seed": int(self.seed),
                 "start": [float(v) for v in self.start],
                 "targets": np.atleast_2d(np.asarray(self.targets, float)).tolist(),
                 "finish": None if self.finish is None else
                 [np.asarray(v, float).tolist() for v in self.finish],
                 "regions": [{"name": r.name, "density": r.density,
-                             "shape": shape_to_dict(r.shape)} for r in self.regions],
-                "fingerprint": self.fingerprint()}
+                             "shape": shape_to_dict(r.shape)} for r in self.regions]}
+        if self.is_moving:
+            data["motions"] = [None if m is None else m.to_dict() for m in self.motions]
+        data["fingerprint"] = self.fingerprint()
+        return data
 
     @classmethod
     def from_dict(cls, data: dict, clouds=None) -> Scene:
@@ -243,9 +368,11 @@ class Scene:
                         for r in data["regions"])
         finish = None if data.get("finish") is None else tuple(
             tuple(v) for v in data["finish"])
+        motions = None if data.get("motions") is None else tuple(
+            None if m is None else Motion.from_dict(m) for m in data["motions"])
         scene = cls(data["name"], regions, tuple(data["start"]),
                     tuple(tuple(t) for t in data["targets"]), int(data["seed"]), finish,
-                    None if clouds is None else tuple(clouds))
+                    None if clouds is None else tuple(clouds), motions)
         stored = data.get("fingerprint")
         if stored is not None and clouds is not None and scene.fingerprint() != stored:
             raise ValueError(f"scene {scene.name!r}: the stored clouds do not match the stored "
@@ -307,6 +434,18 @@ def _require_seed(name: str, seed) -> None:
         raise ValueError(f"{name} must be an integer >= 0, got {seed!r}")
 
 
+def _motions(name: str, motions, count: int) -> tuple | None:
+    """``motions`` checked: ``None``, or a tuple of ``count`` entries, each a :class:`Motion`
+    or ``None``; all ``None`` becomes ``None`` (a static scene)."""
+    if motions is None:
+        return None
+    if not (isinstance(motions, (tuple, list)) and len(motions) == count
+            and all(m is None or isinstance(m, Motion) for m in motions)):
+        raise ValueError(f"{name} must be None or hold one Motion or None per region "
+                         f"({count}), got {motions!r}")
+    return None if all(m is None for m in motions) else tuple(motions)
+
+
 def _cloud_array(name: str, cloud, allow_empty: bool = False) -> np.ndarray:
     """``cloud`` as a float (m, 3) array, checked (never reshaped)."""
     try:
@@ -325,12 +464,17 @@ def _cloud_array(name: str, cloud, allow_empty: bool = False) -> np.ndarray:
 
 
 def make_scene(name: str, seed: int = 7) -> Scene:
-    """The named scene: ``"paper"`` (Section V mission), ``"encounter"`` (one region, short)
-    or ``"random"`` (:func:`paper_repro.random_scenes.random_scene` of ``seed``: a seeded field
-    of regions across a straight flight, with a finish line for passages)."""
+    """The named scene: ``"paper"`` (Section V mission), ``"encounter"`` (one region, short),
+    ``"random"`` (:func:`paper_repro.random_scenes.random_scene` of ``seed``: a seeded field
+    of regions across a straight flight, with a finish line for passages), or a scene whose
+    regions move: ``"crossing"`` (:func:`crossing_scene`), ``"oncoming"``
+    (:func:`oncoming_scene`) and ``"random-crossing"`` (the ``"random"`` field of ``seed``,
+    each region crossing the flight line, ``random_scene(seed, moving=True)``)."""
     from .random_scenes import random_scene
 
-    builders = {"paper": paper_scene, "encounter": encounter_scene, "random": random_scene}
+    builders = {"paper": paper_scene, "encounter": encounter_scene, "random": random_scene,
+                "crossing": crossing_scene, "oncoming": oncoming_scene,
+                "random-crossing": lambda s: random_scene(s, moving=True)}
     if name not in builders:
         raise ValueError(f"scenario must be one of {tuple(builders)}, got {name!r}")
     return builders[name](seed)
@@ -379,6 +523,55 @@ def encounter_scene(seed: int = 7) -> Scene:
     return Scene("encounter", regions, (x0, 0.0, 2.0), ((x0 + 40.0, 0.0, 2.0),), seed)
 
 
+CROSSING_SPEED = 1.0
+"""m/s, speed of the region of the ``crossing`` scene across the flight line."""
+
+ONCOMING_SPEED = 0.5
+"""m/s, speed of the region of the ``oncoming`` scene along the flight line, towards the UAV."""
+
+MEETING_TIME = 8.0
+"""s, when the UAV, flying straight, meets the moving region of ``crossing`` and ``oncoming``."""
+
+
+def crossing_scene(seed: int = 7) -> Scene:
+    """A 2 × 2 × 3 m box that crosses the UAV's straight path at 1.0 m/s, for moving obstacles.
+
+    The UAV starts at rest at [−20, 0, 2] with its target 40 m ahead, [20, 0, 2], as in the
+    encounter: it cruises at ≈0.25 m/s (about the distance to the target over 150 s; flying
+    straight it is at x ≈ −18.0 m at t = 8 s, after dipping to z ≈ 1.3 m). The box (its
+    points at t = 0 are the stored cloud) is centred at [−18, −8, 2] at t = 0 and moves along
+    +y at ``CROSSING_SPEED``, so that its centre is on the path at x = −18 at t =
+    ``MEETING_TIME`` = 8 s, just when the UAV gets there: flown straight (no avoidance, or an
+    avoidance that takes the box as static) the two meet. The box covers the path between
+    t = 7 and 9 s; it comes within the 3 m LiDAR range of the UAV at t ≈ 4 s. The finish line
+    of a passage is 2 m past the box's far face, at x = −15.
+    """
+    x0, xc = -20.0, -18.0
+    t_meet = MEETING_TIME
+    region = Region("crossing-box", Box((xc, -CROSSING_SPEED * t_meet, 2.0), (2.0, 2.0, 3.0)))
+    return Scene("crossing", (region,), (x0, 0.0, 2.0), ((x0 + 40.0, 0.0, 2.0),), seed,
+                 ((xc + 3.0, 0.0, 2.0), (1.0, 0.0, 0.0)),
+                 motions=(Motion.constant((0.0, CROSSING_SPEED, 0.0)),))
+
+
+def oncoming_scene(seed: int = 7) -> Scene:
+    """A 2 × 2 × 3 m box on the UAV's path that comes towards it at 0.5 m/s.
+
+    Start [−20, 0, 2] and target [20, 0, 2], as :func:`crossing_scene`. The box (its points
+    at t = 0 are the stored cloud) is centred at [−13, 0, 2] at t = 0, its near face 6 m ahead
+    of the UAV, and moves along −x at ``ONCOMING_SPEED`` for ever; with the UAV at ≈0.25 m/s
+    they close at ≈0.75 m/s: the box comes within the 3 m LiDAR range at t ≈ 4 s and, flown
+    straight, meets the UAV at t ≈ ``MEETING_TIME`` = 8 s, at x ≈ −18 m. The finish line of a
+    passage is 2 m past the box's far face at that time, at x = −14: the UAV has to get round
+    or over the box.
+    """
+    x0 = -20.0
+    region = Region("oncoming-box", Box((-13.0, 0.0, 2.0), (2.0, 2.0, 3.0)))
+    return Scene("oncoming", (region,), (x0, 0.0, 2.0), ((x0 + 40.0, 0.0, 2.0),), seed,
+                 ((-14.0, 0.0, 2.0), (1.0, 0.0, 0.0)),
+                 motions=(Motion.constant((-ONCOMING_SPEED, 0.0, 0.0)),))
+
+
 # --- LiDAR ----------------------------------------------------------------------------------
 
 class Lidar:
@@ -391,11 +584,16 @@ class Lidar:
     range_ : r_s > 0, m.
     noise : :class:`~paper_repro.config.SensorParams`, or ``None`` for a perfect sensor (as
         is a ``SensorParams`` with its defaults). See :meth:`scan` for the model.
+    motions : ``None`` (static regions), or one :class:`Motion` or ``None`` per region (as
+        :attr:`Scene.motions`): region i is seen at ``clouds[i] + motions[i].offset(t)``.
 
-    One KD-tree over all points is built at construction; :meth:`scan` is a ball query.
+    Static regions: one KD-tree over all points is built at construction and :meth:`scan` is
+    one ball query. With motions: one KD-tree per region, each queried at the sensor's
+    position less the region's offset, so a moving region costs what a static one does.
     """
 
-    def __init__(self, clouds, range_: float = 3.0, noise: SensorParams | None = None):
+    def __init__(self, clouds, range_: float = 3.0, noise: SensorParams | None = None,
+                 motions=None):
         if not (_is_number(range_) and math.isfinite(range_) and range_ > 0):
             raise ValueError(f"lidar range must be a finite number > 0 (m), got {range_!r}")
         if isinstance(clouds, np.ndarray) or not isinstance(clouds, (tuple, list)):
@@ -408,12 +606,16 @@ class Lidar:
         self.range = float(range_)
         self.clouds = tuple(_cloud_array(f"clouds[{i}]", c, allow_empty=True)
                             for i, c in enumerate(clouds))
+        self.motions = _motions("lidar motions", motions, len(self.clouds))
         self.noise = noise if noise is not None else SensorParams()
         self._labels = np.concatenate(
             [np.full(len(c), i) for i, c in enumerate(self.clouds)] or [np.zeros(0, int)])
         points = np.concatenate(self.clouds) if self.clouds else np.zeros((0, 3))
         self._points = points
         self._tree = cKDTree(points) if len(points) else None
+        if self.motions is not None:
+            self._first = np.cumsum([0] + [len(c) for c in self.clouds])[:-1]
+            self._trees = [cKDTree(c) if len(c) else None for c in self.clouds]
         self.reset()
 
     def reset(self) -> None:
@@ -421,12 +623,32 @@ class Lidar:
         noise as after construction (a clean slate for a rerun)."""
         self._rng = np.random.default_rng(self.noise.seed)
 
-    def scan(self, position) -> list[np.ndarray]:
-        """Visible points of each region: a list (one entry per region) of (k_i, 3) arrays,
-        k_i = 0 for a region out of range.
+    def offsets(self, t: float = 0.0) -> np.ndarray:
+        """(n_regions, 3) m, each region's offset c_i(t) from its stored cloud (zero when
+        static)."""
+        shifts = np.zeros((len(self.clouds), 3))
+        if self.motions is not None:
+            for i, m in enumerate(self.motions):
+                if m is not None:
+                    shifts[i] = m.offset(t)
+        return shifts
+
+    def velocities(self, t: float = 0.0) -> list[np.ndarray]:
+        """The regions' true velocities at time ``t`` (s): a list with one (3,) array per
+        region, m/s (zeros for a static region). The oracle a predictor can be given."""
+        _require_time(t)
+        if self.motions is None:
+            return [np.zeros(3) for _ in self.clouds]
+        return [np.zeros(3) if m is None else m.velocity(t) for m in self.motions]
+
+    def scan(self, position, t: float = 0.0) -> list[np.ndarray]:
+        """Visible points of each region at time ``t`` (s; only moving regions depend on it):
+        a list (one entry per region) of (k_i, 3) arrays, k_i = 0 for a region out of range.
 
         A perfect sensor (the default) returns exactly the points within r_s, in their cloud
-        order, and never draws from the generator. With ``noise``, per scan, in this order:
+        order, and never draws from the generator; a moving region's points are returned
+        where they are at ``t`` (stored points + c_i(t)). With ``noise``, per scan, in this
+        order:
 
         * **dropout**: each point within r_s is lost with probability ``dropout``;
         * **range noise**: each kept point p is moved along its ray from the sensor s to
@@ -440,27 +662,58 @@ class Lidar:
         p = np.asarray(position, float)
         if p.shape != (3,) or not np.all(np.isfinite(p)):
             raise ValueError(f"position must be a finite (3,) array, got {p!r}")
+        _require_time(t)
         if self._tree is None:
             return [np.zeros((0, 3)) for _ in self.clouds]
+        if self.motions is not None:
+            return self._moving_scan(p, t)
         idx = np.sort(np.asarray(self._tree.query_ball_point(p, self.range), dtype=int))
         if not self.noise.perfect:
             return self._noisy_scan(p, idx)
         labels = self._labels[idx]
         return [self._points[idx[labels == i]] for i in range(len(self.clouds))]
 
-    def _noisy_scan(self, p: np.ndarray, idx: np.ndarray) -> list[np.ndarray]:
+    def _moving_scan(self, p: np.ndarray, t: float) -> list[np.ndarray]:
+        """:meth:`scan` with motions: region i's tree is queried at p − c_i(t) and its points
+        are shifted by + c_i(t)."""
+        shifts = self.offsets(t)
+        local = [np.zeros(0, int) if tree is None else
+                 np.sort(np.asarray(tree.query_ball_point(p - shifts[i], self.range),
+                                    dtype=int))
+                 for i, tree in enumerate(self._trees)]
+        if not self.noise.perfect:
+            idx = np.concatenate([self._first[i] + li for i, li in enumerate(local)])
+            return self._noisy_scan(p, idx, shifts)
+        return [c[li] + shifts[i] if len(li) else np.zeros((0, 3))
+                for i, (c, li) in enumerate(zip(self.clouds, local, strict=True))]
+
+    def _nearest_region(self, points: np.ndarray, shifts: np.ndarray) -> np.ndarray:
+        """Region holding the nearest point (where it is now) to each of ``points``."""
+        best = np.full(len(points), np.inf)
+        label = np.zeros(len(points), int)
+        for i, tree in enumerate(self._trees):
+            if tree is None:
+                continue
+            d, _ = tree.query(points - shifts[i])
+            closer = d < best
+            best[closer], label[closer] = d[closer], i
+        return label
+
+    def _noisy_scan(self, p: np.ndarray, idx: np.ndarray,
+                    shifts: np.ndarray | None = None) -> list[np.ndarray]:
         noise, rng = self.noise, self._rng
         # Every draw is made whatever the parameters, so that the stream a given seed produces
         # does not depend on which imperfections are switched on.
         kept = rng.random(len(idx)) >= noise.dropout
         eps = rng.standard_normal(len(idx)) * noise.range_noise
         idx, eps = idx[kept], eps[kept]
-        ray = self._points[idx] - p
+        labels = self._labels[idx]
+        where = self._points[idx] if shifts is None else self._points[idx] + shifts[labels]
+        ray = where - p
         dist = np.linalg.norm(ray, axis=1)
         scale = np.divide(np.maximum(dist + eps, 0.0), dist, out=np.ones_like(dist),
                           where=dist > 0)
         points = p + ray * scale[:, None]
-        labels = self._labels[idx]
 
         k = int(rng.poisson(noise.spurious_rate))
         direction = rng.standard_normal((k, 3))
@@ -468,7 +721,16 @@ class Lidar:
         radius = self.range * rng.random(k) ** (1.0 / 3.0)  # uniform in volume
         spurious = p + direction * radius[:, None]
         if k:
-            _, nearest = self._tree.query(spurious)
+            if shifts is None:
+                _, nearest = self._tree.query(spurious)
+                spurious_labels = self._labels[nearest]
+            else:
+                spurious_labels = self._nearest_region(spurious, shifts)
             points = np.vstack([points, spurious])
-            labels = np.concatenate([labels, self._labels[nearest]])
+            labels = np.concatenate([labels, spurious_labels])
         return [points[labels == i] for i in range(len(self.clouds))]
+
+
+def _require_time(t) -> None:
+    if not (_is_number(t) and math.isfinite(t)):
+        raise ValueError(f"time t must be a finite number (s), got {t!r}")
