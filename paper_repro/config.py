@@ -255,7 +255,8 @@ class SimulationParams:
 
     Attributes
     ----------
-    scenario : scene name (``"paper"``, ``"encounter"`` or ``"random"``, see
+    scenario : scene name (``"paper"``, ``"encounter"``, ``"random"``, or with moving
+        regions ``"crossing"``, ``"oncoming"``, ``"random-crossing"``, see
         :func:`paper_repro.scene.make_scene`).
     kind : ``"mission"`` (reach every target in turn, as the paper) or ``"passage"`` (the run
         ends when the UAV crosses the scene's finish line, 2 m past the obstacle field of a
@@ -276,6 +277,12 @@ class SimulationParams:
         (shifted, as after a failed solve). After more than ``fault_steps`` faults in a row
         the run ends with the outcome ``"fault"``; the previous plan ends at rest at its
         artificial equilibrium, so holding it for a second is safe.
+    prediction : how the controller predicts the regions it sees, ``"static"`` (*paper*:
+        every region stays where it is seen, and the solver is called exactly as without
+        moving regions), ``"oracle"`` (each region moves on at its true velocity, from the
+        scene's motions) or ``"kalman"`` (at the velocity estimated from the scans by
+        :class:`paper_repro.tracking.RegionTracker`). Only scenes with moving regions tell
+        them apart.
     """
 
     scenario: str = "paper"
@@ -288,9 +295,11 @@ class SimulationParams:
     stall_time: float = 5.0
     stall_distance: float = 2.0
     fault_steps: int = 100
+    prediction: str = "static"
 
     def __post_init__(self):
         _require_choice("kind", self.kind, ("mission", "passage"))
+        _require_choice("prediction", self.prediction, ("static", "oracle", "kalman"))
         _require_positive("tolerance", self.tolerance)
         _require_positive("lidar_range", self.lidar_range)
         for name in ("stall_speed", "stall_time", "stall_distance"):

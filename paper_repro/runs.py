@@ -79,7 +79,7 @@ class RunSpec:
         return base / f"{self.name}-{self.key[:HASH_LENGTH]}"
 
 
-KEY_NEUTRAL_DEFAULTS = {("distance", "window"): 0.0}
+KEY_NEUTRAL_DEFAULTS = {("distance", "window"): 0.0, ("simulation", "prediction"): "static"}
 """Options added after runs were cached, at the value that flies exactly as before: left out of
 the key at that value, so adding an option does not orphan every cached run."""
 

@@ -70,13 +70,15 @@ class SimulationResult:
     u : (K, 4) N, applied thrusts.          x_a : (K, 12), u_a : (K, 4) artificial equilibrium.
     solve_time : (K,) s.   iterations : (K,).   success : (K,) bool, solver converged.
     status : (K,) solver return status.     clearance : (K,) m, true minimum Euclidean distance
-        from the UAV to any cloud point.    target_index : (K,) index of the active set-point.
+        from the UAV to any cloud point (where it is at t, for moving regions).
+    target_index : (K,) index of the active set-point.
     visible_points : (K,) number of points the LiDAR saw (after dropping non-finite ones).
     dropped_points : (K,) non-finite points dropped from the scan.
     targets : (k, 3) m.   reached : (k,) step at which each target was reached (−1 if not).
     outcome : one of :data:`OUTCOMES`.
-    scene : the :class:`~paper_repro.scene.Scene` flown, clouds included (saved with the
-        result, so a run always redraws against its own points).
+    scene : the :class:`~paper_repro.scene.Scene` flown, clouds and motions included (saved
+        with the result, so a run always redraws against its own points; for moving regions,
+        ``scene.clouds_at(t)`` gives them at time t).
     config : the :class:`~paper_repro.config.Config` of the run.   meta : versions, machine.
     """
 
@@ -197,6 +199,14 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     target the artificial equilibrium cannot reach); the hazards are kept in
     ``meta["hazards"]``.
 
+    At step k (time t = k·T_s) the LiDAR sees each region where it is at t
+    (:meth:`~paper_repro.scene.Lidar.scan`), and the clearance is measured to the regions'
+    true positions at t. With ``simulation.prediction`` ``"static"`` (the paper) the
+    controller is called as ``ctl.solve(x, target, visible, previous=plan)``; with
+    ``"oracle"`` or ``"kalman"`` it is also given ``velocities=``, one (3,) m/s per region of
+    the scan: the regions' true velocities at t (:meth:`~paper_repro.scene.Lidar.velocities`),
+    or the estimates of a :class:`paper_repro.tracking.RegionTracker` updated with each scan.
+
     The run ends when it is complete (every target reached; for ``kind="passage"`` the finish
     line crossed), when it stalls, after ``max_steps``, or after persistent faults: see
     :data:`OUTCOMES`. A failed solve never stops the run: it is recorded in
@@ -216,9 +226,14 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     hazards = setup_hazards(cfg, scene)
     for line in hazards["warnings"]:
         warnings.warn(f"{scene.name}: {line}", SetupHazardWarning, stacklevel=2)
-    lidar = Lidar(scene.clouds, sim.lidar_range, noise=cfg.sensor)
+    lidar = Lidar(scene.clouds, sim.lidar_range, noise=cfg.sensor, motions=scene.motions)
     plant = Plant(cfg.quadrotor, ts)  # RK45 in C, as solve_ivp (ODE45 in the paper)
-    truth = cKDTree(scene.all_points) if len(scene.all_points) else None
+    truth = _TrueClearance(scene)
+    tracker = None
+    if sim.prediction == "kalman":
+        from .tracking import RegionTracker
+
+        tracker = RegionTracker(ts)
     ctl = controller or make_controller(cfg)
     ctl.reset()
     counts_before = dict(ctl.qp_counts) if hasattr(ctl, "qp_counts") else None
@@ -239,12 +254,19 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     wall = time.perf_counter()
     for k in range(sim.max_steps):
         target = targets[target_index]
+        t = k * ts
         measured = x if faults is None or faults.state is None else faults.state(k, x.copy())
-        visible = lidar.scan(x[:3])
+        visible = lidar.scan(x[:3], t)
         if faults is not None and faults.scan is not None:
             visible = faults.scan(k, visible)
         visible, dropped = _finite_points(visible)
-        sol = _solve(ctl, measured, target, visible, plan, errors)
+        if sim.prediction == "static":
+            velocities = None
+        elif sim.prediction == "oracle":
+            velocities = lidar.velocities(t)
+        else:
+            velocities = tracker.update(visible, t)
+        sol = _solve(ctl, measured, target, visible, plan, errors, velocities)
         if sol.success:
             plan, last_good = sol, measured
         else:
@@ -253,8 +275,8 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
                 sol = dataclasses.replace(sol, x_a=plan.x_a, u_a=plan.u_a)
         in_a_row = in_a_row + 1 if sol.status in FAULT_STATUSES else 0
         u = plan.u[0]
-        log.record(k, k * ts, x, u, sol, np.inf if truth is None else truth.query(x[:3])[0],
-                   target_index, sum(len(v) for v in visible), dropped)
+        log.record(k, t, x, u, sol, truth(x[:3], t), target_index,
+                   sum(len(v) for v in visible), dropped)
 
         x = plant.step(x, u)
         error = float(np.linalg.norm(x[:3] - target))
@@ -367,14 +389,40 @@ class _Log:
         return out
 
 
-def _solve(ctl, measured, target, visible, plan, errors: list) -> NMPCSolution:
+class _TrueClearance:
+    """Distance (m) from a position to the nearest cloud point where it is at time t: one
+    KD-tree over every point for a static scene (as always), one per region queried at
+    y − c_i(t) for a moving one; ``inf`` for a scene without points."""
+
+    def __init__(self, scene: Scene):
+        self.motions = scene.motions
+        if self.motions is None:
+            points = scene.all_points
+            self.trees = [cKDTree(points)] if len(points) else []
+        else:
+            self.trees = [cKDTree(c) if len(c) else None for c in scene.clouds]
+
+    def __call__(self, y: np.ndarray, t: float) -> float:
+        if self.motions is None:
+            return self.trees[0].query(y)[0] if self.trees else np.inf
+        return min((tree.query(y if m is None else y - m.offset(t))[0]
+                    for tree, m in zip(self.trees, self.motions, strict=True)
+                    if tree is not None), default=np.inf)
+
+
+def _solve(ctl, measured, target, visible, plan, errors: list,
+           velocities=None) -> NMPCSolution:
     """The controller's solution, or a failed one with the fault's status: a non-finite
     measured state is never handed to the solver, and a solve that raises is recorded (its
-    first messages in ``errors``) instead of ending the flight."""
+    first messages in ``errors``) instead of ending the flight. ``velocities`` (one (3,) m/s
+    per region) is passed on only when given, so a static prediction calls the solver as
+    before moving regions existed."""
     status = "state_fault"
     if np.all(np.isfinite(measured)):
         try:
-            return ctl.solve(measured, target, visible, previous=plan)
+            if velocities is None:
+                return ctl.solve(measured, target, visible, previous=plan)
+            return ctl.solve(measured, target, visible, previous=plan, velocities=velocities)
         except Exception as exc:  # noqa: BLE001 - recorded; persistent faults end the run
             status = "solve_error"
             if len(errors) < 20:
