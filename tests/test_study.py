@@ -46,6 +46,19 @@ def test_studies_are_data_with_unique_names_and_one_name_per_flight():
     assert all(s.config.simulation.kind == "passage" for s in mc.specs + sweep.specs)
 
 
+def test_the_moving_study_flies_each_crossing_with_every_prediction():
+    """Random crossings x {static, oracle, kalman} x both metrics; static runs are keyed as any
+    static-prediction run, the others by their prediction."""
+    study = S.moving_obstacles(scenes=3)
+    assert len(study.specs) == 3 * 3 * 2
+    configs = [s.config.simulation for s in study.specs]
+    assert {c.scenario for c in configs} == {"random-crossing"}
+    assert {c.prediction for c in configs} == set(S.PREDICTIONS)
+    labels = [dict(s.labels)["prediction"] for s in study.specs]
+    assert labels == [c.prediction for c in configs]
+    assert study.specs[0].scene().is_moving
+
+
 def test_bad_study_input_is_named():
     with pytest.raises(ValueError, match="scenes"):
         S.monte_carlo(scenes=0)
