@@ -454,12 +454,16 @@ def main(args) -> int:
 
 
 STUDY_NOTEBOOKS = {"monte_carlo": "09_monte_carlo", "eta_sweep": "10_eta_sweep",
-                   "sensor_noise": "13_sensor_noise", "sensing_window": "15_smooth_sensing"}
+                   "sensor_noise": "13_sensor_noise", "sensing_window": "15_smooth_sensing",
+                   "moving_obstacles": "16_moving_obstacles"}
 """The notebook that draws each study's figures from its saved table."""
 
-STUDY_NOTEBOOK_QUICK = {"sensing_window": {"mission": "encounter", "mission_steps": 3000}}
+STUDY_NOTEBOOK_QUICK = {"sensing_window": {"mission": "encounter", "mission_steps": 3000},
+                        "moving_obstacles": {"crossing_steps": 1500}}
 """Notebook parameters of a ``--quick`` study beyond its table (notebook 15 also flies one
-mission with and without the window: the encounter's first 30 s instead of the paper's)."""
+mission with and without the window: the encounter's first 30 s instead of the paper's;
+notebook 16 flies the crossing scene with each prediction: its first 15 s, past the meeting,
+instead of the whole passage)."""
 
 
 def study_dir(name: str, quick: bool = False) -> Path:
@@ -536,9 +540,14 @@ def _warm(key: str) -> None:
 
 
 def _controller_key(config: Config) -> str:
-    """What a controller depends on: the configuration without its ``simulation`` and
-    ``sensor`` parts (the scene, the run and the LiDAR are the closed loop's, not its)."""
-    neutral = dataclasses.replace(config, simulation=SimulationParams(), sensor=SensorParams())
+    """What a controller depends on: the configuration without its ``sensor`` part and the
+    ``simulation`` fields that are the closed loop's (scene, run kind, limits). It keeps the
+    two the problem reads: ``prediction`` (moving regions carry velocities in the scan's
+    layout) and ``lidar_range`` (the sensing window's r_s)."""
+    sim = config.simulation
+    neutral = dataclasses.replace(
+        config, sensor=SensorParams(),
+        simulation=SimulationParams(prediction=sim.prediction, lidar_range=sim.lidar_range))
     return json.dumps(neutral.to_dict(), sort_keys=True, default=str)
 
 

@@ -57,6 +57,13 @@ def test_the_moving_study_flies_each_crossing_with_every_prediction():
     labels = [dict(s.labels)["prediction"] for s in study.specs]
     assert labels == [c.prediction for c in configs]
     assert study.specs[0].scene().is_moving
+    # One controller per worker and configuration: the prediction is part of the problem (the
+    # scan carries velocities), the scene and the seed are not.
+    keys = {dict(s.labels)["prediction"]: S._controller_key(s.config) for s in study.specs}
+    assert len(set(keys.values())) == 3
+    same = {S._controller_key(s.config) for s in study.specs
+            if dict(s.labels)["prediction"] == "oracle" and dict(s.labels)["metric"] == "smooth"}
+    assert len(same) == 1
 
 
 def test_bad_study_input_is_named():
