@@ -45,9 +45,15 @@ STUDY_OUTPUTS = {
                           "sensing_window_du.png", "sensing_window_study.png",
                           "sensing_window_mission.csv", "sensing_window_rates.csv",
                           "sensing_window_summary.csv", "sensing_window_paired.csv"),
+    "16_moving_obstacles": ("moving_obstacles_crossing.csv", "moving_obstacles_clearance.png",
+                            "moving_obstacles_thrusts.png", "moving_obstacles_crossing.png",
+                            "moving_obstacles.gif", "moving_obstacles_rates.csv",
+                            "moving_obstacles_rates.png", "moving_obstacles_summary.csv",
+                            "moving_obstacles_paired.csv", "moving_obstacles_paired.png"),
 }
 # Study notebooks that also fly: a short mission, cached in the test's folder.
-STUDY_OVERRIDES = {"15_smooth_sensing": {"mission": "encounter", "mission_steps": 3000}}
+STUDY_OVERRIDES = {"15_smooth_sensing": {"mission": "encounter", "mission_steps": 3000},
+                   "16_moving_obstacles": {"crossing_steps": 1500, "frames": 8}}
 
 
 @pytest.fixture(scope="session")
@@ -159,6 +165,19 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, tmp_path
     elif name == "13_sensor_noise":
         paired = pd.read_csv(figures / "sensor_noise_paired.csv")
         assert set(paired["sensor"]) == {"perfect", "noisy"} and (paired["scenes"] == 2).all()
+    elif name == "16_moving_obstacles":
+        rates = pd.read_csv(figures / "moving_obstacles_rates.csv")
+        assert set(rates["prediction"]) == set(S.PREDICTIONS) and (rates["n"] == 2).all()
+        assert set(rates["metric"]) == {"smooth", "euclidean"}
+        per_group = rates[rates["event"] != "collision"].groupby(["prediction", "metric"])["k"]
+        assert (per_group.sum() == 2).all()  # every run in exactly one class
+        # the crossing flown with each prediction, past the meeting (t = 8 s)
+        crossing = pd.read_csv(figures / "moving_obstacles_crossing.csv")
+        assert list(crossing["prediction"]) == list(S.PREDICTIONS)
+        assert (crossing["steps"] == 1500).all() and (crossing["min_clearance_m"] < 1.0).all()
+        assert crossing["t_closest_s"].between(7.0, 10.0).all()
+        paired = pd.read_csv(figures / "moving_obstacles_paired.csv")
+        assert set(paired["prediction"]) == {"oracle", "kalman"} and (paired["scenes"] == 2).all()
     else:
         rates = pd.read_csv(figures / "sensing_window_rates.csv")
         assert set(rates["window_m"]) == set(S.SENSING_WINDOWS) and (rates["n"] == 2).all()

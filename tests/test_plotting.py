@@ -439,3 +439,187 @@ def test_scan_change_study_draws_each_width():
     fig = P.plot_scan_change_study(empty)
     assert "no change of the visible set" in [t.get_text() for t in fig.axes[1].texts]
     plt.close(fig)
+
+
+# --- moving obstacles -------------------------------------------------------------------------
+
+class _HoverRecorder:
+    """A stand-in controller that always hovers and records the velocities it is given."""
+
+    def __init__(self, config, horizon: int = 5):
+        from paper_repro.model import equilibrium
+
+        _, self.u_hover = equilibrium(np.zeros(3), 0.0, config.quadrotor)
+        self.horizon = horizon
+        self.velocities = []
+
+    def reset(self):
+        self.velocities = []
+
+    def hover_guess(self, x0):
+        from paper_repro.ocp import NMPCSolution
+
+        x0 = np.asarray(x0, float)
+        return NMPCSolution(np.tile(self.u_hover, (self.horizon, 1)),
+                            np.tile(x0, (self.horizon + 1, 1)), x0.copy(),
+                            np.asarray(self.u_hover, float).copy(), True, "hover", 1, 1e-4, 0.0)
+
+    def solve(self, x0, target, visible, previous=None, velocities=None):
+        self.velocities.append(None if velocities is None else np.array(velocities))
+        return self.hover_guess(x0)
+
+
+def _approach_scene():
+    """A 2 m box 5 m ahead of a hovering UAV, coming at it at 1 m/s along −x, then turning
+    to +y at t = 2.5 s (so an estimate must follow a change of velocity)."""
+    from paper_repro.scene import Box, Motion, Region, Scene
+
+    box = Region("incoming", Box((5.5, 0.0, 5.0), (2.0, 2.0, 2.0)), density=4.0)
+    motion = Motion((0.0, 2.5, 3.5), ((0.0, 0.0, 0.0), (-2.5, 0.0, 0.0), (-2.5, 1.0, 0.0)))
+    return Scene("approach", (box,), (0.0, 0.0, 5.0), ((-10.0, 0.0, 5.0),), 3,
+                 motions=(motion,))
+
+
+def _fly_approach(prediction, sensor=None, steps=350):
+    from paper_repro.config import SensorParams, SimulationParams
+    from paper_repro.simulation import simulate
+
+    config = Config(simulation=SimulationParams(prediction=prediction),
+                    sensor=sensor or SensorParams())
+    ctl = _HoverRecorder(config)
+    result = simulate(config, ctl, max_steps=steps, scene=_approach_scene(), progress=False)
+    return result, ctl.velocities
+
+
+@pytest.fixture(scope="module")
+def approach():
+    return {p: _fly_approach(p) for p in ("static", "oracle", "kalman")}
+
+
+def test_prediction_velocities_replay_what_the_controller_was_given(approach):
+    from paper_repro.config import SensorParams
+
+    result, given = approach["static"]
+    assert all(v is None for v in given)
+    assert np.array_equal(P.prediction_velocities(result), np.zeros((result.steps, 1, 3)))
+    result, given = approach["oracle"]
+    v = P.prediction_velocities(result)
+    assert v.shape == (result.steps, 1, 3) and np.array_equal(v, np.array(given))
+    np.testing.assert_array_equal(v[100, 0], (-1.0, 0.0, 0.0))
+    np.testing.assert_array_equal(v[300, 0], (0.0, 1.0, 0.0))
+    noisy = _fly_approach("kalman", SensorParams(range_noise=0.05, dropout=0.2,
+                                                 spurious_rate=2.0, seed=4))
+    for result, given in (approach["kalman"], noisy):
+        v = P.prediction_velocities(result)
+        assert np.array_equal(v, np.array(given))  # bit for bit, noise included
+    result = approach["kalman"][0]
+    v = P.prediction_velocities(result)
+    seen = np.flatnonzero(result.visible_points > 0)
+    assert seen[0] > 0 and np.all(v[: seen[0]] == 0)  # nothing estimated before first sight
+    assert np.linalg.norm(v[240, 0] - (-1.0, 0.0, 0.0)) < 0.2  # tracked before the turn
+
+
+def test_clearance_time_draws_each_run_with_its_minimum(approach):
+    results = [approach[p][0] for p in ("static", "oracle")]
+    fig = P.plot_clearance_time(results, ["static", "oracle"], t_range=(1.0, 3.0))
+    ax = fig.axes[0]
+    lines = ax.get_lines()
+    k = np.flatnonzero((results[0].t >= 1.0) & (results[0].t <= 3.0))
+    for i, r in enumerate(results):
+        line, dot = lines[2 * i], lines[2 * i + 1]
+        assert np.allclose(line.get_xdata(), r.t[k]) and np.allclose(line.get_ydata(),
+                                                                      r.clearance[k])
+        j = k[np.argmin(r.clearance[k])]
+        assert dot.get_xdata()[0] == pytest.approx(r.t[j])
+        assert dot.get_ydata()[0] == pytest.approx(r.clearance[j])
+    assert lines[0].get_color() == P.PREDICTION_COLOURS["static"]
+    assert np.allclose(lines[-1].get_ydata(), 0.35)
+    text = [t.get_text() for t in ax.get_legend().get_texts()]
+    j = k[np.argmin(results[0].clearance[k])]
+    assert text[0] == f"static: min {results[0].clearance[j]:.3f} m at {results[0].t[j]:.2f} s"
+    plt.close(fig)
+    with pytest.raises(ValueError, match="label"):
+        P.plot_clearance_time(results, ["one"])
+
+
+def test_crossing_closest_draws_the_closest_approach_and_the_predicted_points(approach):
+    from paper_repro.scene import Lidar
+
+    results = [approach[p][0] for p in ("static", "oracle", "kalman")]
+    velocities = [None] + [P.prediction_velocities(r) for r in results[1:]]
+    fig = P.plot_crossing_closest(results, ["static", "oracle", "kalman"],
+                                  velocities=velocities, planes=("xy", "yz"))
+    axes = np.array(fig.axes).reshape(2, 3)
+    h = results[0].config.nmpc.prediction_step
+    for col, (r, vel) in enumerate(zip(results, velocities, strict=True)):
+        k = int(np.argmin(r.clearance))
+        clouds = r.scene.clouds_at(r.t[k])
+        seen = Lidar(clouds, 3.0).scan(r.x[k, :3])[0]
+        for row, idx in enumerate(([0, 1], [1, 2])):
+            ax = axes[row, col]
+            cloud, in_view, *ghosts = ax.collections
+            assert np.allclose(cloud.get_offsets(), clouds[0][:, idx])
+            assert np.allclose(in_view.get_offsets(), seen[:, idx])
+            if vel is None:
+                assert ghosts == []
+            else:
+                assert len(ghosts) == 3
+                for ghost, j in zip(ghosts, (0, 17, 35), strict=True):
+                    assert np.allclose(ghost.get_offsets(), (seen + vel[k, 0] * j * h)[:, idx])
+            segment = ax.get_lines()[-1]  # UAV to the nearest point: the clearance
+            ends = np.c_[segment.get_xdata(), segment.get_ydata()]
+            assert np.allclose(ends[0], r.x[k, idx])
+            assert f"min clearance {r.clearance[k]:.3f} m" in ax.get_title()
+            assert ax.get_xlim() == axes[row, 0].get_xlim()  # shared limits
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert labels[-1] == "predicted at τ = 0, 0.17, 0.35 s"
+    plt.close(fig)
+    with pytest.raises(ValueError, match="one entry per run"):
+        P.plot_crossing_closest(results, ["a", "b", "c"], velocities=[None])
+    with pytest.raises(ValueError, match="plane"):
+        P.plot_crossing_closest(results[:1], ["a"], planes=("xw",))
+
+
+def test_animate_crossing_writes_a_gif_of_the_requested_frames(approach, tmp_path):
+    from PIL import Image
+
+    result = approach["kalman"][0]
+    path = P.animate_crossing(result, tmp_path / "crossing.gif", frames=4, dpi=20,
+                              t_range=(1.0, 3.0))
+    with Image.open(path) as im:
+        assert im.format == "GIF" and im.n_frames == 4
+        assert im.size == (2 * 90, 90)  # two 4.5 × 4.5 in panels at dpi 20
+    with pytest.raises(ValueError, match="frames"):
+        P.animate_crossing(result, tmp_path / "x.gif", frames=0)
+    with pytest.raises(ValueError, match="velocities"):
+        P.animate_crossing(result, tmp_path / "x.gif", velocities=np.zeros((3, 1, 3)))
+
+
+def test_prediction_study_draws_rates_and_runs_per_prediction_and_metric():
+    import pandas as pd
+    from matplotlib.collections import LineCollection, PathCollection
+
+    rows = []
+    for p, clear in (("static", 0.2), ("oracle", 0.6), ("kalman", 0.5)):
+        for m in ("smooth", "euclidean"):
+            for seed in range(4):
+                hit = p == "static" and seed < 2
+                rows.append({"prediction": p, "metric": m, "scene_seed": seed, "status": "ok",
+                             "outcome": "completed" if seed else "stalled",
+                             "completed": seed > 0, "stalled": seed == 0, "collision": hit,
+                             "min_clearance_m": clear + 0.1 * seed,
+                             "tv_u_rate_N_per_s": (2.0 if m == "smooth" else 500.0) + seed})
+    fig = P.plot_prediction_study(pd.DataFrame(rows))
+    completed, collided, stalled, step_limit, clearance, tv = fig.axes
+    assert [t.get_text() for t in collided.get_xticklabels()] == ["static", "oracle", "kalman"]
+    heights = [b.get_height() for b in collided.patches]  # smooth then euclidean, per prediction
+    assert np.allclose(heights, [0.5, 0.0, 0.0] * 2)
+    assert np.allclose([b.get_height() for b in completed.patches], 0.75)
+    assert np.allclose([b.get_height() for b in step_limit.patches], 0.0)
+    dots = [c for c in clearance.collections if isinstance(c, PathCollection)]
+    assert len(dots) == 6 and all(len(c.get_offsets()) == 4 for c in dots)
+    medians = sorted(seg[0][1] for c in clearance.collections if isinstance(c, LineCollection)
+                     for seg in c.get_segments())
+    assert np.allclose(medians, [0.35, 0.35, 0.65, 0.65, 0.75, 0.75])
+    assert tv.get_yscale() == "log"
+    plt.close(fig)
