@@ -379,8 +379,6 @@ def animate_flight(result, scene, path, frames: int = 100, fps: int = 12, dpi: i
 
     Returns the path written.
     """
-    from matplotlib.animation import FuncAnimation, PillowWriter
-
     if not (isinstance(frames, int) and frames >= 1):
         raise ValueError(f"frames must be an integer >= 1, got {frames!r}")
     pos = result.x[:, :3]
@@ -430,12 +428,7 @@ def animate_flight(result, scene, path, frames: int = 100, fps: int = 12, dpi: i
                      f"clearance {result.clearance[k_log]:.2f} m", fontsize="small")
         return []
 
-    anim = FuncAnimation(fig, update, frames=steps, blit=False)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    anim.save(path, writer=PillowWriter(fps=fps), dpi=dpi)
-    plt.close(fig)
-    return path
+    return _save_animation(fig, update, steps, path, fps, dpi)
 
 
 # --- saving ---------------------------------------------------------------------------------
@@ -1408,8 +1401,6 @@ def animate_crossing(result, path, velocities=None, planes=("xy", "yz"), stages=
 
     Returns the path written.
     """
-    from matplotlib.animation import FuncAnimation, PillowWriter
-
     if not (isinstance(frames, int) and frames >= 1):
         raise ValueError(f"frames must be an integer >= 1, got {frames!r}")
     for plane in planes:
@@ -1456,12 +1447,7 @@ def animate_crossing(result, path, velocities=None, planes=("xy", "yz"), stages=
                        f"clearance {result.clearance[k]:.2f} m")
         return []
 
-    anim = FuncAnimation(fig, update, frames=steps, blit=False)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    anim.save(path, writer=PillowWriter(fps=fps), dpi=dpi)
-    plt.close(fig)
-    return path
+    return _save_animation(fig, update, steps, path, fps, dpi)
 
 
 def plot_prediction_study(table, events=("completed", "collision", "stalled", "step_limit"),
@@ -1545,3 +1531,15 @@ def plot_prediction_study(table, events=("completed", "collision", "stalled", "s
         ax.set_xlabel("prediction")
         ax.grid(alpha=0.3, axis="y")
     return fig
+
+
+def _save_animation(fig, update, frames, path, fps: int, dpi: int) -> Path:
+    """Render ``update`` over ``frames`` into a GIF at ``path`` (folders made), close ``fig``."""
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    anim = FuncAnimation(fig, update, frames=frames, blit=False)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    anim.save(path, writer=PillowWriter(fps=fps), dpi=dpi)
+    plt.close(fig)
+    return path

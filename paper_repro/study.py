@@ -206,10 +206,7 @@ def sensor_noise(quick: bool = False, scenes: int | None = None,
     ``scenes`` random passages (8; 2 with ``quick``; the perfect runs are those of
     :func:`monte_carlo`). The smoothed distance averages many points where the Euclidean one
     follows the nearest, so noise should widen the gap."""
-    n = scenes if scenes is not None else (2 if quick else 8)
-    _require_count("scenes", n)
-    base = base or Config()
-    steps = QUICK_STEPS if quick else PASSAGE_STEPS
+    n, base, steps = _passages(quick, scenes, 8, base)
     specs = []
     for level, sensor in (("perfect", base.sensor), ("noisy", NOISY_LIDAR)):
         for metric in ("smooth", "euclidean"):
@@ -235,10 +232,7 @@ def sensing_window(quick: bool = False, scenes: int | None = None,
     ``scenes`` random passages (12; 2 with ``quick``; w = 0 are the runs of
     :func:`monte_carlo`). Do thrust steps at changes of the visible set disappear, and at what
     cost in clearance and completion?"""
-    n = scenes if scenes is not None else (2 if quick else 12)
-    _require_count("scenes", n)
-    base = base or Config()
-    steps = QUICK_STEPS if quick else PASSAGE_STEPS
+    n, base, steps = _passages(quick, scenes, 12, base)
     specs = []
     for width in SENSING_WINDOWS:
         cfg = dataclasses.replace(base, distance=dataclasses.replace(base.distance,
@@ -262,10 +256,7 @@ def moving_obstacles(quick: bool = False, scenes: int | None = None,
     0.5–1.5 m/s) × the predictions of :data:`PREDICTIONS` × {smoothed, Euclidean}, on
     ``scenes`` passages (30; 2 with ``quick``). Does the static assumption collide where
     prediction does not?"""
-    n = scenes if scenes is not None else (2 if quick else 30)
-    _require_count("scenes", n)
-    base = base or Config()
-    steps = QUICK_STEPS if quick else PASSAGE_STEPS
+    n, base, steps = _passages(quick, scenes, 30, base)
     specs = []
     for prediction in PREDICTIONS:
         cfg = dataclasses.replace(base, simulation=dataclasses.replace(
@@ -519,6 +510,14 @@ def _run_on_dask(specs, runs_dir: str, force: bool, done, workers, scheduler, cl
 
 
 @functools.lru_cache(maxsize=8)
+def _passages(quick: bool, scenes: int | None, default: int, base: Config | None):
+    """(number of scenes, base config, steps per passage) of a passage study: ``default``
+    scenes, 2 with ``quick`` (and the short quick passages), unless ``scenes`` says."""
+    n = scenes if scenes is not None else (2 if quick else default)
+    _require_count("scenes", n)
+    return n, base or Config(), QUICK_STEPS if quick else PASSAGE_STEPS
+
+
 def _controller(key: str):
     """The controller of a configuration, built once per worker process.
 
