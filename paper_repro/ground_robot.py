@@ -118,6 +118,12 @@ def fly(controller: Controller, scene: PlanarScene | None = None, steps: int = 5
         lidar_range: float = 3.0, substeps: int = 10) -> PlanarRun:
     """The closed loop: scan, solve, apply the first input for T_s, integrate the unicycle
     (RK4, ``substeps`` per T_s). A failed solve applies the previous plan, shifted."""
+    for name, value in (("steps", steps), ("substeps", substeps)):
+        if not (isinstance(value, int) and value >= 1):
+            raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    if not (isinstance(lidar_range, (int, float)) and np.isfinite(lidar_range)
+            and lidar_range > 0):
+        raise ValueError(f"lidar_range must be a finite number > 0 (m), got {lidar_range!r}")
     scene = scene or planar_scene()
     ocp = controller.ocp
     ts = ocp.config.nmpc.ts

@@ -84,3 +84,15 @@ def _tree(scene):
     from scipy.spatial import cKDTree
 
     return cKDTree(scene.cloud), scene.cloud
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(steps=0), "steps"), (dict(substeps=1.5), "substeps"),
+    (dict(lidar_range=-1.0), "lidar_range")])
+def test_bad_flight_settings_are_named_before_flying(kwargs, name):
+    class NeverSolves:  # fly must refuse before it touches the controller
+        def __getattr__(self, item):
+            raise AssertionError("the controller was used")
+
+    with pytest.raises(ValueError, match=f"^{name} must be"):
+        fly(NeverSolves(), **kwargs)
