@@ -79,6 +79,7 @@ def main() -> None:
                      "iterations_median": float(np.median(r.iterations)),
                      "failures": r.failures, "max_dev_m": dev,
                      "hpipm_qps": r.meta.get("qp_counts", {}).get("hpipm", 0),
+                     "shortened": r.meta.get("step_counts", {}).get("shortened", 0),
                      "min_clearance_m": float(r.clearance.min())})
 
     print(f"\n{args.scenario} ({prediction} prediction), {args.metric} metric, {args.steps} steps, "
@@ -88,6 +89,7 @@ def main() -> None:
                        ("p95_ms", "p95 ms", ".2f"), ("p99_ms", "p99 ms", ".2f"),
                        ("max_ms", "max ms", ".2f"), ("iterations_median", "iters", ".0f"),
                        ("failures", "failures", "d"), ("hpipm_qps", "hpipm QPs", "d"),
+                       ("shortened", "short steps", "d"),
                        ("max_dev_m", "max dev m", ".2e"),
                        ("min_clearance_m", "min clear m", ".3f")], width=14)
 

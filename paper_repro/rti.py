@@ -35,7 +35,9 @@ sampling instant, stopping early when the step is small.
 
 from __future__ import annotations
 
+import itertools
 import time
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -65,17 +67,23 @@ class RealTimeNMPC:
     capacities : smaller LiDAR capacities (points per region slot) compiled besides the
         config's ``points_per_region`` (see :class:`LinearisationLadder`; ``()``: the
         config's capacity only).
+    line_search : shorten a step that does not decrease the ℓ1 merit function enough
+        (:class:`MeritLineSearch`); ``False`` takes every full step (the textbook real-time
+        iteration, which falls into a period-2 oscillation of the inputs when a region
+        moves at the vehicle).
 
     Attributes
     ----------
     ocp : the problem.  layout : its :class:`QPLayout`.
     qp_counts : QPs solved so far by each path: ``riccati``, ``hpipm`` (as the chosen solver
         or as the fallback) and ``failed``.
+    step_counts : SQP steps taken so far: ``full`` (α = 1) and ``shortened`` (α < 1).
     """
 
     def __init__(self, config: Config | None = None, model: VehicleModel | None = None,
                  max_iter: int = 1, step_tol: float = 1e-6, qp_solver: str = "riccati",
-                 compile: bool = True, capacities: tuple[int, ...] = (1, 8, 16, 24, 32, 48)):
+                 compile: bool = True, capacities: tuple[int, ...] = (1, 8, 16, 24, 32, 48),
+                 line_search: bool = True):
         if not (isinstance(max_iter, int) and max_iter >= 1):
             raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
         if not step_tol > 0:
@@ -91,12 +99,17 @@ class RealTimeNMPC:
         self.ladder = LinearisationLadder(ocp, capacities, compile)
         self.qp_solver = qp_solver if self.ladder.native else "hpipm"
         self.qp = QPChain(self.layout, self.qp_solver)
+        self.line_search = MeritLineSearch(self.layout, max_trials=4 if line_search else 0)
         self._lbw, self._ubw = self.layout.bounds(ocp)
         self._position = list(ocp.model.position)
 
     @property
     def qp_counts(self) -> dict[str, int]:
         return self.qp.counts
+
+    @property
+    def step_counts(self) -> dict[str, int]:
+        return self.line_search.counts
 
     # --- public ------------------------------------------------------------------------------
 
@@ -114,8 +127,8 @@ class RealTimeNMPC:
         x0 = as_vector("x0", x0, ocp.nx)
         target = as_vector("target", target, ocp.ny)
         visible = check_visible(visible, ocp.ny)
-        lin, scan = self.ladder.for_scan(visible)
-        params = np.concatenate([target, self.ladder.pack(visible, ocp.output(x0), scan,
+        rung = self.ladder.for_scan(visible)
+        params = np.concatenate([target, self.ladder.pack(visible, ocp.output(x0), rung.scan,
                                                           velocities)])
         if previous is None:
             guess = self.hover_guess(x0)
@@ -128,19 +141,26 @@ class RealTimeNMPC:
         U = np.array(guess.u, dtype=float)
         a = ocp.parameters_of(guess.x_a, guess.u_a)
 
-        success, status, it = False, "iterated", 0
+        def values(dw, alpha):  # (cost, gap, eq) at the iterate moved by α·Δw
+            dx, du, da = layout.gather(dw)
+            return self.ladder.evaluate(rung.values, x0, X[1:] + alpha * dx, U + alpha * du,
+                                        a + alpha * da, params)
+
+        success, status, it, merit = False, "iterated", 0, np.nan
         for it in range(1, self.max_iter + 1):  # noqa: B007 - `it` is reported below
             w = layout.scatter(X[1:], U, a)
-            blocks = self.ladder.evaluate(lin, x0, X[1:], U, a, params)
-            dw = self.qp.solve(*blocks, self._lbw - w, self._ubw - w)
+            h, q, j, gap, eq, cost = self.ladder.evaluate(rung.linearisation, x0, X[1:], U, a,
+                                                          params)
+            dw = self.qp.solve(h, q, j, gap, eq, self._lbw - w, self._ubw - w)
             if dw is None:
                 success, status = False, "qp_failed"
                 break
+            alpha, merit = self.line_search(dw, h, q, gap, eq, float(cost[0]), values)
             dx, du, da = layout.gather(dw)
-            X[1:] += dx
-            U += du
-            a += da
-            if float(np.abs(dw[layout.bounded]).max()) < self.step_tol:
+            X[1:] += alpha * dx
+            U += alpha * du
+            a += alpha * da
+            if alpha * float(np.abs(dw[layout.bounded]).max()) < self.step_tol:
                 success, status = True, "converged"
                 break
         else:
@@ -149,7 +169,7 @@ class RealTimeNMPC:
         finite = np.isfinite(X).all() and np.isfinite(U).all() and np.isfinite(a).all()
         x_a, u_a = ocp.equilibrium_of(a)
         return NMPCSolution(U, X, x_a, u_a, bool(success and finite), status, it, elapsed,
-                            np.nan)
+                            merit)
 
     def reset(self) -> None:
         """Forget everything carried from one solve to the next (the Riccati solver's active
@@ -168,7 +188,8 @@ class RealTimeNMPC:
 
 # --- the linearisation -------------------------------------------------------------------------
 
-def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
+def linearisation(ocp: OCP, scan: ScanLayout | None = None,
+                  values_only: bool = False) -> ca.Function:
     """CasADi function giving every block of the Gauss-Newton QP at the current iterate.
 
     Inputs: x0 (n_x), X (n_x × N: x_1..x_N), U (n_u × N), A (n_a × N+1: a at each stage),
@@ -176,7 +197,10 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
     Outputs, flattened column-major and concatenated over stages:
       h: Hessian blocks (stage 0: (a, u); stages 1..N−1: (x, a, s, u); stage N: (x, a, s)),
       q: gradient, j: [A_j B_j] gap Jacobians then the terminal Jacobian C (the −I blocks of the
-      gaps are constants), gap: residuals φ(z_j, u_j) − z_{j+1}, eq: terminal residual.
+      gaps are constants), gap: residuals φ(z_j, u_j) − z_{j+1}, eq: terminal residual,
+      cost: the objective of (21) at the iterate (the value whose gradient is q).
+    ``values_only``: a function of the same inputs giving only (cost, gap, eq), what the line
+    search needs at a trial point (no derivative is built).
     """
     scan = scan or ocp.scan
     n, nx, nu, ns = ocp.horizon, ocp.nx, ocp.nu, scan.slots
@@ -198,8 +222,14 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
     def beta(yy, pp, when=0.0):
         return beta_fn(yy, pp, when) if scan.moving else beta_fn(yy, pp)
 
-    def gn(residual, penalties, v):
-        """Gauss-Newton Hessian and exact gradient of ‖r‖² + μ Σ active·F(g)."""
+    def terms(residual, penalties, v):
+        """The stage's cost ‖r‖² + μ Σ active·F(g) and, unless ``values_only``, its exact
+        gradient and Gauss-Newton Hessian (as vec(H), ∇) with respect to v."""
+        cost = ca.sumsqr(residual)
+        for g, weight in penalties:
+            cost += ocp.mu * weight * ocp.penalty(g)
+        if values_only:
+            return [cost]
         jr = ca.jacobian(residual, v)
         hess = 2 * ca.mtimes(jr.T, jr)
         grad = 2 * ca.mtimes(jr.T, residual)
@@ -208,7 +238,11 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
             d1, d2 = ocp.penalty_derivatives(g)
             hess += ocp.mu * weight * d2 * ca.mtimes(jg.T, jg)
             grad += ocp.mu * weight * d1 * jg.T
-        return hess, grad
+        return [cost, ca.vec(hess), grad]
+
+    def dynamics(phi, v):
+        """Unless ``values_only`` the Jacobian [A_j B_j] of φ, then φ (the next stage's z)."""
+        return [phi] if values_only else [ca.vec(ca.jacobian(phi, v)), phi]
 
     # Stage 0: v = (a, u); x0 is known.
     x0 = ca.SX.sym("x0", nx)
@@ -216,10 +250,10 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
     u = ca.SX.sym("u", nu)
     v0 = ca.vertcat(a, u)
     x_a, u_a = ocp.equilibrium(a)
-    h0, q0 = gn(ocp.tracking_residual(x0, u, x_a, u_a), [], v0)
     phi0 = ca.vertcat(f(x0, u), a, beta(h(x0), params))
     stage0 = ca.Function("stage0", [x0, a, u, params],
-                         [ca.vec(h0), q0, ca.vec(ca.jacobian(phi0, v0)), phi0])
+                         terms(ocp.tracking_residual(x0, u, x_a, u_a), [], v0)
+                         + dynamics(phi0, v0))
 
     # Stages 1..N−1: v = (x, a, s, u), s_j = β(y_{j−1}) carried.
     x = ca.SX.sym("x", nx)
@@ -227,13 +261,13 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
     vj = ca.vertcat(x, a, s, u)
     bj = beta(h(x), params, tau)  # stage j: τ = j·h
     gj = [(ocp.violation(s[i], bj[i]), active[i]) for i in range(ns)]
-    hj, qj = gn(ocp.tracking_residual(x, u, x_a, u_a), gj, vj)
     phij = ca.vertcat(f(x, u), a, bj)
-    x_prev = ca.SX.sym("x_prev", nx)
     inner = ca.Function("inner", [x, a, s, u, params, tau],
-                        [ca.vec(hj), qj, ca.vec(ca.jacobian(phij, vj)), phij])
-    h_, q_, ab_, phi_ = inner(x, a, beta(h(x_prev), params, tau - ocp.step), u, params, tau)
-    stage = ca.Function("stage", [x_prev, x, a, u, params, tau], [h_, q_, ab_, phi_])
+                        terms(ocp.tracking_residual(x, u, x_a, u_a), gj, vj)
+                        + dynamics(phij, vj))
+    x_prev = ca.SX.sym("x_prev", nx)
+    stage = ca.Function("stage", [x_prev, x, a, u, params, tau],
+                        inner(x, a, beta(h(x_prev), params, tau - ocp.step), u, params, tau))
 
     # Stage N: v = (x, a, s); cost T‖y_a − y_t‖², the last barrier terms; x_N = x_a (and
     # x_a = f(x_a, u_a) without a parametrisation).
@@ -245,12 +279,13 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
         gn_terms += [(ocp.violation(s[i], bn[i]), active[i]),
                      (ocp.violation(bn[i], ba[i]), active[i]),
                      (ocp.equilibrium_violation(ba[i]), active[i])]
-    hn, qn = gn(ocp.offset_residual(y_a, yt), gn_terms, vn)
     eq_res = ca.vertcat(x - x_a, ocp.equilibrium_rows(a))
     inner_n = ca.Function("inner_n", [x, a, s, params, tau],
-                          [ca.vec(hn), qn, ca.vec(ca.jacobian(eq_res, vn)), eq_res])
-    hN, qN, jN, eN = inner_n(x, a, beta(h(x_prev), params, tau - ocp.step), params, tau)
-    stage_n = ca.Function("stage_n", [x_prev, x, a, params, tau], [hN, qN, jN, eN])
+                          terms(ocp.offset_residual(y_a, yt), gn_terms, vn)
+                          + ([] if values_only else [ca.vec(ca.jacobian(eq_res, vn))])
+                          + [eq_res])
+    stage_n = ca.Function("stage_n", [x_prev, x, a, params, tau],
+                          inner_n(x, a, beta(h(x_prev), params, tau - ocp.step), params, tau))
 
     # Whole horizon.
     X0 = ca.MX.sym("x0", nx)
@@ -258,26 +293,40 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None) -> ca.Function:
     U = ca.MX.sym("U", nu, n)
     A = ca.MX.sym("A", na, n + 1)
     P = ca.MX.sym("p", params.shape[0])
-    h0m, q0m, j0m, phi0m = stage0(X0, A[:, 0], U[:, 0], P)
+    out0 = stage0(X0, A[:, 0], U[:, 0], P)
     mid = stage.map(n - 1, "serial")
     xprev = ca.horzcat(X0, X[:, : n - 2])
     times = ca.DM(np.arange(1, n) * ocp.step).T  # τ_j = j·h of stages 1..N−1
-    hm, qm, jm, phim = mid(xprev, X[:, : n - 1], A[:, 1:n], U[:, 1:], P, times)
-    hN_, qN_, jN_, eN_ = stage_n(X[:, n - 2], X[:, n - 1], A[:, n], P, n * ocp.step)
+    outm = mid(xprev, X[:, : n - 1], A[:, 1:n], U[:, 1:], P, times)
+    outn = stage_n(X[:, n - 2], X[:, n - 1], A[:, n], P, n * ocp.step)
+    cost = out0[0] + ca.sum2(outm[0]) + outn[0]
     # Gap residuals φ(z_j, u_j) − z_{j+1}. The iterate's s_{j+1} is always β(y_j) itself (it
     # is never stored, only recomputed), so the s part of every gap is exactly zero.
     zero_s = ca.MX.zeros(ns, 1)
-    phis = ca.horzcat(phi0m, phim)
+    phis = ca.horzcat(out0[-1], outm[-1])
     gaps = ca.vertcat(*[ca.vertcat(phis[:nx, j] - X[:, j], phis[nx:nx + na, j] - A[:, j + 1],
                                    zero_s)
                         for j in range(n)])
-    H = ca.vertcat(h0m, ca.vec(hm), hN_)
-    Q = ca.vertcat(q0m, ca.vec(qm), qN_)
-    J = ca.vertcat(j0m, ca.vec(jm), jN_)
+    name = f"rti_{'values' if values_only else 'linearisation'}_{ocp.model.name}"
+    if values_only:
+        outs, names = [cost, gaps, outn[-1]], ["cost", "gap", "eq"]
+    else:
+        H = ca.vertcat(out0[1], ca.vec(outm[1]), outn[1])
+        Q = ca.vertcat(out0[2], ca.vec(outm[2]), outn[2])
+        J = ca.vertcat(out0[3], ca.vec(outm[3]), outn[3])
+        outs = [H, Q, J, gaps, outn[-1], cost]
+        names = ["h", "q", "j", "gap", "eq", "cost"]
+    return ca.Function(name, [X0, X, U, A, P], [ca.densify(v) for v in outs],
+                       ["x0", "X", "U", "A", "p"], names)
 
-    outs = [ca.densify(v) for v in (H, Q, J, gaps, eN_)]
-    return ca.Function(f"rti_linearisation_{ocp.model.name}", [X0, X, U, A, P], outs,
-                       ["x0", "X", "U", "A", "p"], ["h", "q", "j", "gap", "eq"])
+
+class Rung(NamedTuple):
+    """One capacity of the ladder: its scan layout, its linearisation and the values-only
+    function of the line search (see :func:`linearisation`)."""
+
+    scan: ScanLayout
+    linearisation: ca.Function | NativeFunction
+    values: ca.Function | NativeFunction
 
 
 class LinearisationLadder:
@@ -300,7 +349,7 @@ class LinearisationLadder:
 
     Attributes
     ----------
-    rungs : [(scan layout, function)], by increasing capacity.  native : compiled or not.
+    rungs : [:class:`Rung`], by increasing capacity.  native : compiled or not.
     """
 
     def __init__(self, ocp: OCP, capacities=(), compile: bool = True):
@@ -309,22 +358,23 @@ class LinearisationLadder:
         self.sizes = [fn.nnz_out(i) for i in range(fn.n_out())]
         self.native = bool(compile and compiler() is not None)
         if not self.native:
-            self.rungs = [(ocp.scan, fn)]
+            self.rungs = [Rung(ocp.scan, fn, linearisation(ocp, values_only=True))]
         else:
             self.rungs = []
             for cap in sorted({c for c in capacities if c < top} | {top}):
                 scan = ocp.scan.with_capacity(cap)
-                self.rungs.append(
-                    (scan, NativeFunction(fn if cap == top else linearisation(ocp, scan))))
+                self.rungs.append(Rung(
+                    scan, NativeFunction(fn if cap == top else linearisation(ocp, scan)),
+                    NativeFunction(linearisation(ocp, scan, values_only=True))))
         self._empty = {}  # capacity -> packed parameters of a scan that sees nothing
 
-    def for_scan(self, visible):
-        """``(function, scan layout)`` of the smallest capacity that holds the scan."""
+    def for_scan(self, visible) -> Rung:
+        """The rung of the smallest capacity that holds the scan."""
         need = max((len(v) for v in visible), default=0)
-        for scan, fn in self.rungs:
-            if need <= scan.capacity:
-                return fn, scan
-        return self.rungs[-1][1], self.rungs[-1][0]  # the scan keeps the nearest points
+        for rung in self.rungs:
+            if need <= rung.scan.capacity:
+                return rung
+        return self.rungs[-1]  # the scan keeps the nearest points
 
     def pack(self, visible, position, scan: ScanLayout, velocities=None) -> np.ndarray:
         """:meth:`ScanLayout.pack`, except that the packing of an empty scan, the same wherever
@@ -337,8 +387,10 @@ class LinearisationLadder:
 
     @staticmethod
     def evaluate(fn, x0, X, U, a, params):
-        """Every stage's QP blocks at this iterate: [h, q, j, gap, eq] (see
-        :func:`linearisation`); ``X`` (N, n_x), ``U`` (N, n_u), ``a`` (n_a,) at every stage."""
+        """``fn`` (a rung's linearisation or values) at this iterate: [h, q, j, gap, eq, cost]
+        or [cost, gap, eq] (see :func:`linearisation`); ``X`` (N, n_x), ``U`` (N, n_u), ``a``
+        (n_a,) at every stage. Native outputs are the function's own buffers (overwritten by
+        its next call)."""
         if isinstance(fn, NativeFunction):
             ins = fn.inputs
             ins[0][:, 0], ins[1][:], ins[2][:], ins[3][:], ins[4][:, 0] = \
@@ -374,7 +426,9 @@ class QPLayout:
         self.nw = nw = int(offsets[-1])
 
         # Hessian: dense diagonal blocks, stored by the linearisation one after the other,
-        # each in column-major order.
+        # each in column-major order; runs of equal sizes as (offsets, size).
+        self._uniform_runs = [(offsets[np.array(list(g))], size) for size, g in
+                              itertools.groupby(range(n + 1), key=lambda j: self.sizes[j])]
         index = -np.ones((nw, nw), dtype=int)
         k = 0
         for j, s in enumerate(self.sizes):
@@ -427,6 +481,17 @@ class QPLayout:
         lb[self.ia[0]], ub[self.ia[0]] = ocp.equilibrium_box
         self.bounded = np.flatnonzero(np.isfinite(lb))
         return lb, ub
+
+    def curvature(self, h, dw) -> float:
+        """Δwᵀ H Δw from the linearisation's Hessian blocks ``h``."""
+        total, k = 0.0, 0
+        for (o, size) in self._uniform_runs:  # runs of equal block sizes, one einsum each
+            count = len(o)
+            blocks = h[k:k + count * size * size].reshape(count, size, size)
+            parts = dw[o[:, None] + np.arange(size)]
+            total += float(np.einsum("bi,bij,bj->", parts, blocks, parts))
+            k += count * size * size
+        return total
 
     def scatter(self, X, U, a) -> np.ndarray:
         """w of the iterate: X (N, n_x) = x_1..x_N, U (N, n_u), a (n_a,) at every stage; the
@@ -538,3 +603,68 @@ class QPChain:
         if self.riccati is not None:
             self.riccati.seed(dw, lb, ub, np.asarray(sol["lam_x"]).ravel())
         return dw
+
+
+# --- the step size -----------------------------------------------------------------------------
+
+
+class MeritLineSearch:
+    """Backtracking on the ℓ1 merit function of problem (21) (Nocedal & Wright, 2006, §18.3).
+
+        φ(w) = J(w) + ν·(‖gap(w)‖₁ + ‖eq(w)‖₁),
+
+    J the objective of (21) and gap, eq its equality residuals. The QP step p is a descent
+    direction of φ once ν ≥ (qᵀp + ½pᵀHp) / ((1 − ρ)‖c‖₁) (ρ = ½, c the residuals), so ν is
+    raised to that bound at every step, and then α = 1, ½, ¼, … is taken as soon as
+
+        φ(w + αp) ≤ φ(w) + η·α·Dφ,    Dφ = qᵀp − ν‖c‖₁  (η = 10⁻⁴, Armijo).
+
+    The Gauss-Newton QP is only a local model: where a region moves at the vehicle the stiff
+    penalty makes the full step overshoot, the next instant's step undo it, and the inputs
+    alternate between their bounds at every sample. Near the optimum the full step is accepted
+    and costs one evaluation of (J, gap, eq), without derivatives. When ``max_trials`` step
+    sizes all fail the best one tried is taken (a real-time iteration must return); with
+    ``max_trials = 0`` every full step is taken.
+
+    Attributes
+    ----------
+    counts : steps taken at full length (``full``) and shortened (``shortened``).
+    """
+
+    def __init__(self, layout: QPLayout, max_trials: int = 4, armijo: float = 1e-4,
+                 shrink: float = 0.5):
+        if not (isinstance(max_trials, int) and max_trials >= 0):
+            raise ValueError(f"max_trials must be an integer >= 0, got {max_trials!r}")
+        if not (0 < armijo < 0.5 and 0 < shrink < 1):
+            raise ValueError(f"armijo must be in (0, 0.5) and shrink in (0, 1), got "
+                             f"{armijo!r}, {shrink!r}")
+        self.layout, self.max_trials = layout, max_trials
+        self.armijo, self.shrink = armijo, shrink
+        self.counts = {"full": 0, "shortened": 0}
+
+    def __call__(self, dw, h, q, gap, eq, cost: float, values) -> tuple[float, float]:
+        """(α, φ(w + αΔw)) for the QP step ``dw`` at the iterate whose linearisation is (h, q,
+        gap, eq, cost); ``values(dw, α)`` returns (cost, gap, eq) at w + αΔw."""
+        if self.max_trials == 0:
+            self.counts["full"] += 1
+            return 1.0, np.nan
+        infeasibility = float(np.abs(gap).sum() + np.abs(eq).sum())
+        slope = float(q @ dw)
+        nu = 0.0
+        if infeasibility > 0.0:
+            curvature = max(self.layout.curvature(h, dw), 0.0)
+            nu = max(0.0, (slope + 0.5 * curvature) / (0.5 * infeasibility)) + 1.0
+        merit0 = cost + nu * infeasibility
+        descent = slope - nu * infeasibility
+        alpha, best = 1.0, (np.inf, 1.0)
+        for _ in range(self.max_trials):
+            c, g, e = values(dw, alpha)
+            merit = float(c[0]) + nu * float(np.abs(g).sum() + np.abs(e).sum())
+            if merit <= merit0 + self.armijo * alpha * min(descent, 0.0):
+                break
+            best = min(best, (merit, alpha))
+            alpha *= self.shrink
+        else:
+            merit, alpha = best
+        self.counts["full" if alpha == 1.0 else "shortened"] += 1
+        return alpha, merit

@@ -237,6 +237,7 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     ctl = controller or make_controller(cfg)
     ctl.reset()
     counts_before = dict(ctl.qp_counts) if hasattr(ctl, "qp_counts") else None
+    steps_before = dict(ctl.step_counts) if hasattr(ctl, "step_counts") else None
     targets = np.atleast_2d(np.asarray(scene.targets, float))
     finish_point, finish_dir = ((np.asarray(v, float) for v in scene.finish) if passage
                                 else (None, None))
@@ -315,6 +316,8 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     meta["scene"] = scene.name
     if counts_before is not None:  # QPs of this run by solver path (rti solver only)
         meta["qp_counts"] = {k: v - counts_before.get(k, 0) for k, v in ctl.qp_counts.items()}
+    if steps_before is not None:
+        meta["step_counts"] = {k: v - steps_before.get(k, 0) for k, v in ctl.step_counts.items()}
     return SimulationResult(targets=targets, reached=reached, outcome=outcome, scene=scene,
                             config=cfg, meta=meta, **arrays)
 

@@ -136,16 +136,16 @@ def test_a_smaller_lidar_capacity_gives_the_same_step(scene, metric):
     assert 0 < max(counts) <= 16
     ladder = RealTimeNMPC(_config(metric))
     full = RealTimeNMPC(_config(metric), capacities=())
-    assert [scan.capacity for scan, _ in ladder.ladder.rungs] == [1, 8, 16, 24, 32, 48]
+    assert [scan.capacity for scan, *_ in ladder.ladder.rungs] == [1, 8, 16, 24, 32, 48]
     fitting = min(c for c in (1, 8, 16, 24, 32, 48) if c >= max(counts))
-    assert ladder.ladder.for_scan(visible)[1].capacity == fitting
+    assert ladder.ladder.for_scan(visible).scan.capacity == fitting
     a = ladder.solve(x0, scene.targets[0], visible)
     b = full.solve(x0, scene.targets[0], visible)
     np.testing.assert_allclose(a.u, b.u, rtol=0, atol=1e-10)
     np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
     # Nothing in range: the capacity-1 linearisation, still the same step.
     empty = [np.empty((0, 3))]
-    scan = ladder.ladder.for_scan(empty)[1]
+    scan = ladder.ladder.for_scan(empty).scan
     assert scan.capacity == 1
     # An empty scan is packed once: the same parameters wherever the UAV is.
     np.testing.assert_array_equal(ladder.ladder.pack(empty, x0[:3] + 7.0, scan),
