@@ -29,8 +29,9 @@ Four parts, one job each:
 * :class:`QPChain`: the QP backends, the Riccati solver (:class:`~paper_repro.stage_qp.StageQP`,
   warm-started with the previous active set) first and HPIPM as its fallback, with counters.
 
-:class:`RealTimeNMPC` is the thin SQP loop that joins them: up to ``max_iter`` full steps per
-sampling instant, stopping early when the step is small.
+:class:`RealTimeNMPC` is the thin SQP loop that joins them: up to ``max_iter`` steps per
+sampling instant, stopping early when the step is small, each step shortened by
+:class:`MeritLineSearch` when it does not decrease the merit function enough.
 """
 
 from __future__ import annotations
@@ -67,10 +68,10 @@ class RealTimeNMPC:
     capacities : smaller LiDAR capacities (points per region slot) compiled besides the
         config's ``points_per_region`` (see :class:`LinearisationLadder`; ``()``: the
         config's capacity only).
-    line_search : shorten a step that does not decrease the ℓ1 merit function enough
-        (:class:`MeritLineSearch`); ``False`` takes every full step (the textbook real-time
-        iteration, which falls into a period-2 oscillation of the inputs when a region
-        moves at the vehicle).
+    line_search : shorten a step that does not decrease the ℓ1 merit function enough, and
+        damp the next QPs after it (:class:`MeritLineSearch`); ``False`` takes every full
+        step (the textbook real-time iteration, whose inputs fall into a period-2
+        oscillation between their bounds when a region moves at the vehicle).
 
     Attributes
     ----------
@@ -151,6 +152,7 @@ class RealTimeNMPC:
             w = layout.scatter(X[1:], U, a)
             h, q, j, gap, eq, cost = self.ladder.evaluate(rung.linearisation, x0, X[1:], U, a,
                                                           params)
+            self.line_search.damp(h)
             dw = self.qp.solve(h, q, j, gap, eq, self._lbw - w, self._ubw - w)
             if dw is None:
                 success, status = False, "qp_failed"
@@ -173,9 +175,11 @@ class RealTimeNMPC:
 
     def reset(self) -> None:
         """Forget everything carried from one solve to the next (the Riccati solver's active
-        set and multipliers), so that a new flight starts from a clean slate and is
-        bit-identical whether this controller is new or reused. ``qp_counts`` keeps counting."""
+        set and multipliers, the line search's damping), so that a new flight starts from a
+        clean slate and is bit-identical whether this controller is new or reused.
+        ``qp_counts`` and ``step_counts`` keep counting."""
         self.qp.reset()
+        self.line_search.reset()
 
     def hover_guess(self, x0) -> NMPCSolution:
         """Rest where the vehicle is for the whole horizon (the quadrotor: hover)."""
@@ -427,6 +431,11 @@ class QPLayout:
 
         # Hessian: dense diagonal blocks, stored by the linearisation one after the other,
         # each in column-major order; runs of equal sizes as (offsets, size).
+        diagonal, k = [], 0
+        for size in self.sizes:
+            diagonal.append(k + np.arange(size) * (size + 1))
+            k += size * size
+        self.hessian_diagonal = np.concatenate(diagonal)  # positions of H's diagonal in h
         self._uniform_runs = [(offsets[np.array(list(g))], size) for size, g in
                               itertools.groupby(range(n + 1), key=lambda j: self.sizes[j])]
         index = -np.ones((nw, nw), dtype=int)
@@ -609,7 +618,8 @@ class QPChain:
 
 
 class MeritLineSearch:
-    """Backtracking on the ℓ1 merit function of problem (21) (Nocedal & Wright, 2006, §18.3).
+    """Backtracking on the ℓ1 merit function of problem (21) (Nocedal & Wright, 2006, §18.3),
+    with Levenberg–Marquardt damping of the next QPs when a step had to be shortened.
 
         φ(w) = J(w) + ν·(‖gap(w)‖₁ + ‖eq(w)‖₁),
 
@@ -619,32 +629,58 @@ class MeritLineSearch:
 
         φ(w + αp) ≤ φ(w) + η·α·Dφ,    Dφ = qᵀp − ν‖c‖₁  (η = 10⁻⁴, Armijo).
 
-    The Gauss-Newton QP is only a local model: where a region moves at the vehicle the stiff
+    Why: the Gauss-Newton QP is a local model. Where a region moves at the vehicle the stiff
     penalty makes the full step overshoot, the next instant's step undo it, and the inputs
-    alternate between their bounds at every sample. Near the optimum the full step is accepted
-    and costs one evaluation of (J, gap, eq), without derivatives. When ``max_trials`` step
-    sizes all fail the best one tried is taken (a real-time iteration must return); with
-    ``max_trials = 0`` every full step is taken.
+    alternate between their bounds at every sample (a period-2 oscillation of the textbook
+    real-time iteration). Shortening the step stops the overshoot; the QP's own plan still
+    swings, so after a shortened step the next QPs get the damping δ·I on their Hessian
+    (δ grows ×``grow`` after every shortened step, from ``damping_start`` up to
+    ``damping_max``, shrinks ÷``relax`` after every full one and is 0 again below
+    ``damping_start``/100). δ changes the step, never the fixed point: the converged SQP
+    solves (21) whatever δ is.
+
+    Near the optimum every full step is accepted: the cost is one evaluation of (J, gap, eq)
+    per iteration, without derivatives, and δ stays 0, so the iterates are those of the full
+    steps bit for bit. When ``max_trials`` step sizes all fail the best one tried is taken (a
+    real-time iteration must return); with ``max_trials = 0`` every full step is taken and δ
+    stays 0.
 
     Attributes
     ----------
     counts : steps taken at full length (``full``) and shortened (``shortened``).
+    damping : δ for the next QP.
     """
 
     def __init__(self, layout: QPLayout, max_trials: int = 4, armijo: float = 1e-4,
-                 shrink: float = 0.5):
+                 shrink: float = 0.5, damping_start: float = 10.0, damping_max: float = 1e5,
+                 grow: float = 4.0, relax: float = 2.0):
         if not (isinstance(max_trials, int) and max_trials >= 0):
             raise ValueError(f"max_trials must be an integer >= 0, got {max_trials!r}")
         if not (0 < armijo < 0.5 and 0 < shrink < 1):
             raise ValueError(f"armijo must be in (0, 0.5) and shrink in (0, 1), got "
                              f"{armijo!r}, {shrink!r}")
+        if not (0 < damping_start <= damping_max and grow > 1 and relax > 1):
+            raise ValueError(f"need 0 < damping_start <= damping_max, grow > 1 and relax > 1, "
+                             f"got {damping_start!r}, {damping_max!r}, {grow!r}, {relax!r}")
         self.layout, self.max_trials = layout, max_trials
         self.armijo, self.shrink = armijo, shrink
+        self.damping_start, self.damping_max = damping_start, damping_max
+        self.grow, self.relax = grow, relax
         self.counts = {"full": 0, "shortened": 0}
+        self.damping = 0.0
+
+    def reset(self) -> None:
+        """No damping (a new flight)."""
+        self.damping = 0.0
+
+    def damp(self, h) -> None:
+        """Add δ to every diagonal entry of the Hessian blocks ``h`` (in place)."""
+        if self.damping > 0.0:
+            h[self.layout.hessian_diagonal] += self.damping
 
     def __call__(self, dw, h, q, gap, eq, cost: float, values) -> tuple[float, float]:
         """(α, φ(w + αΔw)) for the QP step ``dw`` at the iterate whose linearisation is (h, q,
-        gap, eq, cost); ``values(dw, α)`` returns (cost, gap, eq) at w + αΔw."""
+        gap, eq, cost); ``values(dw, α)`` returns (cost, gap, eq) at w + αΔw. Then adapts δ."""
         if self.max_trials == 0:
             self.counts["full"] += 1
             return 1.0, np.nan
@@ -666,5 +702,13 @@ class MeritLineSearch:
             alpha *= self.shrink
         else:
             merit, alpha = best
-        self.counts["full" if alpha == 1.0 else "shortened"] += 1
+        if alpha == 1.0:
+            self.counts["full"] += 1
+            self.damping /= self.relax
+            if self.damping < self.damping_start / 100:
+                self.damping = 0.0
+        else:
+            self.counts["shortened"] += 1
+            self.damping = min(max(self.damping * self.grow, self.damping_start),
+                               self.damping_max)
         return alpha, merit

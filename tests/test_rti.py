@@ -192,3 +192,82 @@ def test_bad_options_are_rejected():
         NMPCParams(qp_solver="osqp")
     with pytest.raises(ValueError, match="x0"):
         RealTimeNMPC(_config()).solve(np.zeros(3), np.zeros(3))
+
+
+# --- the line search ---------------------------------------------------------------------------
+
+
+def test_line_search_changes_nothing_where_full_steps_descend(scene):
+    """Past the corner of the static encounter every full step decreases the merit function:
+    no step is shortened and the flight is the full-step flight bit for bit."""
+    near = dataclasses.replace(scene, start=(-18.6, 0.0, 2.0))
+    cfg = _config()
+    runs = {}
+    for line_search in (True, False):
+        ctl = RealTimeNMPC(cfg, line_search=line_search)
+        runs[line_search] = simulate(cfg, controller=ctl, max_steps=300, progress=False,
+                                     scene=near)
+        assert ctl.step_counts["full"] == 300 and ctl.step_counts["shortened"] == 0
+    assert runs[True].visible_points.max() > 0
+    np.testing.assert_array_equal(runs[True].x, runs[False].x)
+
+
+def test_line_search_stops_the_period_two_oscillation_on_a_crossing():
+    """A box crossing the path at 1 m/s (oracle prediction): with full steps the thrusts jump
+    between their bounds at every sample once the region is near; the line search (with its
+    damping) shortens a few steps and the jumps all but vanish, with more clearance."""
+    cfg = Config(simulation=SimulationParams(scenario="crossing", prediction="oracle"),
+                 nmpc=dataclasses.replace(SMALL, solver="rti"))
+    jumps, clearance = {}, {}
+    for line_search in (True, False):
+        ctl = RealTimeNMPC(cfg, line_search=line_search)
+        result = simulate(cfg, controller=ctl, max_steps=750, progress=False)
+        assert result.failures == 0
+        jumps[line_search] = int((np.abs(np.diff(result.u, axis=0)).max(axis=1) > 5.0).sum())
+        clearance[line_search] = result.clearance.min()
+        assert (ctl.step_counts["shortened"] > 0) == line_search
+    assert jumps[False] > 50  # the oscillation is there to be stopped
+    assert jumps[True] < 0.2 * jumps[False]
+    assert clearance[True] > clearance[False] > COLLISION_CLEARANCE
+
+
+def test_merit_line_search_shortens_overshooting_steps_and_damps_the_next_qps():
+    """On a merit that rises along the full step the step is halved until Armijo holds, δ
+    starts at ``damping_start`` and grows; full steps relax δ back to 0. A descending full
+    step is taken as it is, with one evaluation."""
+    from paper_repro.rti import MeritLineSearch, QPLayout
+
+    layout = QPLayout(horizon=2, nx=1, nu=1, na=1, ns=0, nc=1)
+    search = MeritLineSearch(layout, damping_start=10.0, grow=4.0, relax=2.0)
+    h = np.zeros(sum(s * s for s in layout.sizes))
+    h[layout.hessian_diagonal] = 1.0
+    q = -np.ones(layout.nw)
+    dw = np.ones(layout.nw)  # slope qᵀΔw = −n_w < 0; no residuals, so ν = 0
+    gap, eq = np.zeros(layout.n_gap_rows), np.zeros(layout.nc)
+    trials = []
+
+    def bowl(centre):  # J(w + αΔw) of a 1-D bowl along the step, minimum at α = centre
+        def values(step, alpha):
+            trials.append(alpha)
+            return np.array([layout.nw * (alpha - centre) ** 2]), gap, eq
+        return values
+
+    cost = layout.nw * 0.25 ** 2
+    alpha, _ = search(dw, h, q, gap, eq, cost, bowl(0.25))
+    # J(1) > J(0) and J(½) = J(0): both fail Armijo's sufficient decrease; J(¼) = 0 passes.
+    assert alpha == 0.25 and trials == [1.0, 0.5, 0.25]
+    assert search.damping == 10.0 and search.counts == {"full": 0, "shortened": 1}
+    search(dw, h, q, gap, eq, cost, bowl(0.25))
+    assert search.damping == 40.0
+    damped = h.copy()
+    search.damp(damped)
+    np.testing.assert_array_equal(damped - h, np.where(np.isin(np.arange(h.size),
+                                                                layout.hessian_diagonal), 40, 0))
+    trials.clear()
+    for _ in range(9):  # a step to the minimum: full, one evaluation each, δ relaxes
+        assert search(dw, h, q, gap, eq, layout.nw * 1.0, bowl(1.0))[0] == 1.0
+    assert trials == [1.0] * 9 and search.damping == 0.0  # 40/2⁹ < 10/100: off
+    with pytest.raises(ValueError, match="max_trials"):
+        MeritLineSearch(layout, max_trials=-1)
+    with pytest.raises(ValueError, match="damping_start"):
+        MeritLineSearch(layout, damping_start=0.0)
