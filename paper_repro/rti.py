@@ -152,7 +152,7 @@ class RealTimeNMPC:
             w = layout.scatter(X[1:], U, a)
             h, q, j, gap, eq, cost = self.ladder.evaluate(rung.linearisation, x0, X[1:], U, a,
                                                           params)
-            self.line_search.damp(h)
+            damped = self.line_search.damp(h)
             dw = self.qp.solve(h, q, j, gap, eq, self._lbw - w, self._ubw - w)
             if dw is None:
                 success, status = False, "qp_failed"
@@ -162,7 +162,10 @@ class RealTimeNMPC:
             X[1:] += alpha * dx
             U += alpha * du
             a += alpha * da
-            if alpha * float(np.abs(dw[layout.bounded]).max()) < self.step_tol:
+            # Converged: a full, undamped step below the tolerance (a shortened or damped
+            # step is small without being near the solution).
+            if (alpha == 1.0 and not damped
+                    and float(np.abs(dw[layout.bounded]).max()) < self.step_tol):
                 success, status = True, "converged"
                 break
         else:
@@ -627,7 +630,9 @@ class MeritLineSearch:
     direction of φ once ν ≥ (qᵀp + ½pᵀHp) / ((1 − ρ)‖c‖₁) (ρ = ½, c the residuals), so ν is
     raised to that bound at every step, and then α = 1, ½, ¼, … is taken as soon as
 
-        φ(w + αp) ≤ φ(w) + η·α·Dφ,    Dφ = qᵀp − ν‖c‖₁  (η = 10⁻⁴, Armijo).
+        φ(w + αp) ≤ φ(w) + η·α·Dφ,    Dφ = qᵀp − ν‖c‖₁  (η = 10⁻⁴, Armijo),
+
+    up to 10⁻¹⁰·(1 + |φ|): near the solution every smaller change of φ is rounding.
 
     Why: the Gauss-Newton QP is a local model. Where a region moves at the vehicle the stiff
     penalty makes the full step overshoot, the next instant's step undo it, and the inputs
@@ -664,6 +669,7 @@ class MeritLineSearch:
                              f"got {damping_start!r}, {damping_max!r}, {grow!r}, {relax!r}")
         self.layout, self.max_trials = layout, max_trials
         self.armijo, self.shrink = armijo, shrink
+        self.feasible = 1e-12  # per residual
         self.damping_start, self.damping_max = damping_start, damping_max
         self.grow, self.relax = grow, relax
         self.counts = {"full": 0, "shortened": 0}
@@ -673,10 +679,12 @@ class MeritLineSearch:
         """No damping (a new flight)."""
         self.damping = 0.0
 
-    def damp(self, h) -> None:
-        """Add δ to every diagonal entry of the Hessian blocks ``h`` (in place)."""
+    def damp(self, h) -> bool:
+        """Add δ to every diagonal entry of the Hessian blocks ``h`` (in place); whether δ > 0."""
         if self.damping > 0.0:
             h[self.layout.hessian_diagonal] += self.damping
+            return True
+        return False
 
     def __call__(self, dw, h, q, gap, eq, cost: float, values) -> tuple[float, float]:
         """(α, φ(w + αΔw)) for the QP step ``dw`` at the iterate whose linearisation is (h, q,
@@ -687,16 +695,20 @@ class MeritLineSearch:
         infeasibility = float(np.abs(gap).sum() + np.abs(eq).sum())
         slope = float(q @ dw)
         nu = 0.0
-        if infeasibility > 0.0:
+        # Residuals at rounding level count as feasible (ν from them would be noise).
+        if infeasibility > self.feasible * (gap.size + eq.size):
             curvature = max(self.layout.curvature(h, dw), 0.0)
             nu = max(0.0, (slope + 0.5 * curvature) / (0.5 * infeasibility)) + 1.0
         merit0 = cost + nu * infeasibility
         descent = slope - nu * infeasibility
+        # Near the solution the changes of φ are rounding (of φ and of the residuals that
+        # the step restores): a change within 10⁻¹⁰·(1 + |φ|) counts as no increase.
+        rounding = 1e-10 * (1.0 + abs(merit0))
         alpha, best = 1.0, (np.inf, 1.0)
         for _ in range(self.max_trials):
             c, g, e = values(dw, alpha)
             merit = float(c[0]) + nu * float(np.abs(g).sum() + np.abs(e).sum())
-            if merit <= merit0 + self.armijo * alpha * min(descent, 0.0):
+            if merit <= merit0 + self.armijo * alpha * min(descent, 0.0) + rounding:
                 break
             best = min(best, (merit, alpha))
             alpha *= self.shrink
