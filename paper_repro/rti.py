@@ -91,6 +91,8 @@ class RealTimeNMPC:
             raise ValueError(f"step_tol must be > 0, got {step_tol!r}")
         if not all(isinstance(c, int) and c >= 1 for c in capacities):
             raise ValueError(f"capacities must be integers >= 1, got {capacities!r}")
+        if not isinstance(line_search, bool):
+            raise ValueError(f"line_search must be True or False, got {line_search!r}")
         if qp_solver not in ("riccati", "hpipm"):
             raise ValueError(f"qp_solver must be 'riccati' or 'hpipm', got {qp_solver!r}")
         self.ocp = ocp = OCP(config, model)

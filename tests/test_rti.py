@@ -188,6 +188,8 @@ def test_bad_options_are_rejected():
         RealTimeNMPC(_config(), max_iter=0)
     with pytest.raises(ValueError, match="qp_solver"):
         RealTimeNMPC(_config(), qp_solver="osqp")
+    with pytest.raises(ValueError, match="line_search"):
+        RealTimeNMPC(_config(), line_search="yes")
     with pytest.raises(ValueError, match="qp_solver"):
         NMPCParams(qp_solver="osqp")
     with pytest.raises(ValueError, match="x0"):
