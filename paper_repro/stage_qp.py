@@ -13,7 +13,11 @@ the equality-constrained QP with the active bounds fixed:
 
 * one Riccati factorisation; the fixed bounds and C x_N = d enter by an augmented Lagrangian
   (weight ``rho`` times the largest Hessian diagonal), whose multipliers are refined by cheap
-  vector passes until the equalities hold to ``eq_tol``.
+  vector passes until the equalities hold to ``eq_tol``;
+* the recursion runs backward from stage N, so stage j's factors depend on the bounds of
+  stages j..N only: after a change of the active set, the stages above the highest changed
+  one keep their factors. On the crossing's escape manoeuvre this halves the work of the hard
+  QPs (a median 2.6 full factorisations for 4 iterates).
 
 The guess is first made dual feasible (bounds whose multiplier has the wrong sign are
 released), then repaired by dual active-set steps (Goldfarb and Idnani, 1983): the most
@@ -46,7 +50,7 @@ STATUS = {0: "solved", 1: "active_set_not_found", 2: "infeasible_or_inconsistent
 
 class _Stats(ctypes.Structure):
     _fields_ = [("outer", ctypes.c_int), ("passes", ctypes.c_int), ("changes", ctypes.c_int),
-                ("n_active", ctypes.c_int)]
+                ("n_active", ctypes.c_int), ("stages", ctypes.c_int)]
 
 
 def _library():
@@ -58,7 +62,7 @@ def _library():
     lib.stage_qp_solve.restype = ctypes.c_int
     ptr, i, f = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
     lib.stage_qp_solve.argtypes = [i, ptr, ptr, ptr, ptr, ptr, ptr, i, ptr, ptr, ptr, ptr, ptr,
-                                   ptr, ptr, f, f, f, i, i, ptr, ctypes.c_size_t, ptr, ptr]
+                                   ptr, ptr, f, f, f, i, i, i, ptr, ctypes.c_size_t, ptr, ptr]
     return lib
 
 
@@ -70,6 +74,7 @@ class StageQPResult:
     passes: int   # vector passes
     changes: int  # active-set changes
     n_active: int
+    stages: int   # stage factorisations (N + 1 per full factorisation; fewer per partial one)
 
     @property
     def success(self) -> bool:
@@ -88,13 +93,19 @@ class StageQP:
         to the largest diagonal entry of H (at least 1).
     eq_tol : the fixed bounds and C x_N = d hold to this (absolute).
     kkt_tol : tolerance of the bound and multiplier-sign checks.
-    max_outer : equality-QP solves (factorisations) before giving up.
+    max_outer : equality-QP solves (factorisations) before giving up. The default, 40, spends
+        at most about what one HPIPM solve of the NMPC's QP costs through CasADi (40 partial
+        factorisations at 0.1-0.2 ms against 6-12 ms), so giving up never costs more than
+        twice the fallback.
     max_passes : multiplier updates per factorisation; a set that cannot meet the equalities
         within them counts as inconsistent.
+    reuse_factors : keep the factors of the stages above the highest changed bound (True);
+        False refactorises every stage every time, the same numbers at more cost (a check).
     """
 
     def __init__(self, nx, nu, nc: int, rho: float = 1e4, eq_tol: float = 1e-10,
-                 kkt_tol: float = 1e-9, max_outer: int = 8, max_passes: int = 30):
+                 kkt_tol: float = 1e-9, max_outer: int = 40, max_passes: int = 30,
+                 reuse_factors: bool = True):
         self.nx = np.ascontiguousarray(nx, dtype=np.intc)
         self.nu = np.ascontiguousarray(nu, dtype=np.intc)
         self.horizon = len(self.nu)
@@ -117,7 +128,10 @@ class StageQP:
             "ab": int(np.sum(self.nx[1:] * self.sizes[:-1])), "b": int(self.nx[1:].sum()),
             "c": self.nc * int(self.nx[-1]), "d": self.nc, "lb": self.nw, "ub": self.nw}
         self.rho, self.eq_tol, self.kkt_tol = float(rho), float(eq_tol), float(kkt_tol)
+        if not isinstance(reuse_factors, bool):
+            raise ValueError(f"reuse_factors must be True or False, got {reuse_factors!r}")
         self.max_outer, self.max_passes = int(max_outer), int(max_passes)
+        self.reuse_factors = reuse_factors
         self._lib = _library()
         self._work = np.zeros(self._lib.stage_qp_workspace(
             self.horizon, self.nx.ctypes.data, self.nu.ctypes.data, self.nc))
@@ -170,10 +184,10 @@ class StageQP:
         info = self._lib.stage_qp_solve(
             self.horizon, nx, nu, h, q, ab, b, self.nc, c, d, lb, ub, p_active, p_lam, p_lam_c,
             self.rho, self.eq_tol, self.kkt_tol, self.max_outer, self.max_passes,
-            work, work_size, z, stats)
+            int(self.reuse_factors), work, work_size, z, stats)
         s = self._stats
         if info == 0:  # keep the active set for the next call only when it is right
             self.active[:], self.lam[:], self.lam_c[:] = active, lam, lam_c
         return StageQPResult(self.z.copy(), STATUS.get(info, f"error {info}"), s.outer,
-                             s.passes, s.changes, s.n_active)
+                             s.passes, s.changes, s.n_active, s.stages)
 
