@@ -1,6 +1,6 @@
 """The moving_obstacles study's smooth runs with the barrier in Definition 1's form (c = δ).
 
-    python benchmarks/moving_definition_form.py [--scenes 30] [--workers 2]
+    python benchmarks/moving_definition_form.py [--scenes 30] [--workers 2] [--force]
 
 Writes ``figures/studies/moving_obstacles_definition/`` (table and study.json, runs cached in
 ``results/runs/``) and prints the collision, completion and stall rates and the median
@@ -22,6 +22,9 @@ def main() -> None:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--scenes", type=int, default=30)
     parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--force", action="store_true",
+                        help="fly every run again (the cache key covers config and scene, "
+                             "not the solver's code)")
     args = parser.parse_args()
     base = Config(barrier=BarrierParams(form="definition"))
     specs = tuple(
@@ -32,7 +35,8 @@ def main() -> None:
                     "random crossings, smooth metric, barrier in Definition 1's form (c = δ), "
                     f"prediction in {S.PREDICTIONS}, {args.scenes} passages")
     result = S.run_study(study, out=paths.figures_dir() / "studies" / study.name,
-                         workers=args.workers, runs_dir=paths.results_dir() / "runs")
+                         workers=args.workers, runs_dir=paths.results_dir() / "runs",
+                         force=args.force)
     table = result.table.groupby("prediction")
     print(table[["collision", "completed", "stalled"]].mean())
     print(table[["min_clearance_m", "tv_u_rate_N_per_s"]].median())
