@@ -87,12 +87,10 @@ size_t stage_qp_workspace(int n, const int *nx, const int *nu, int nc) {
         nw += s;
         mx = nx[j] > mx ? nx[j] : mx;
     }
-    /* g, pv, target, z0, lam0, dlam; scratch; lamc0, dlamc; AB_j' (as many entries as the
-     * AB_j); the nonzero lists of the AB columns (ints: one row index per entry of AB_j, one
-     * count per column), in doubles; the active set of the current factors (chars) */
-    size_t n_ab = 0;
-    for (int j = 0; j < n; ++j) n_ab += (size_t)nx[j + 1] * (nx[j] + nu[j]);
-    return w + 6 * nw + mx + 2 * (size_t)nc + n_ab + (nz_ints(n, nx, nu) + 1) / 2
+    /* g, pv, target, z0, lam0, dlam; scratch; lamc0, dlamc; the nonzero lists of the AB
+     * columns (ints: one row index per entry of AB_j, one count per column), in doubles;
+     * the active set of the current factors (chars) */
+    return w + 6 * nw + mx + 2 * (size_t)nc + (nz_ints(n, nx, nu) + 1) / 2
            + (nw + sizeof(double) - 1) / sizeof(double);
 }
 
@@ -120,25 +118,13 @@ static void nonzeros(int n, const int *nx, const int *nu, const double *ab, int 
     }
 }
 
-/* AB_j' of every stage (s_j x x_{j+1}, column-major): the products AB' v below run as sums
- * of its columns, which vectorise, where dot products with AB's columns would not. */
-static void transposes(int n, const int *nx, const int *nu, const double *ab, double *abt) {
-    for (int j = 0; j < n; ++j) {
-        int s = nx[j] + nu[j], x1 = nx[j + 1];
-        for (int r = 0; r < s; ++r)
-            for (int k = 0; k < x1; ++k) abt[r + (size_t)k * s] = ab[k + (size_t)r * x1];
-        ab += (size_t)s * x1;
-        abt += (size_t)s * x1;
-    }
-}
-
 /* Factorise with the current active set. P_j, and M_j holding L_uu (Cholesky of the input
  * block) and K_j = -M_uu^{-1} M_ux in its (u, x) block; P_0 is left as its Cholesky factor.
  * The recursion runs backward, so stage j's factors depend on the active bounds of stages
  * j..N only: stages above `top` (the highest whose bounds changed since the last call) are
  * kept, and the call redoes stages top..0. */
 static int factorise(int n, const int *nx, const int *nu, const double *h, const double *ab,
-                     const double *abt, const int *idx, const int *cnt, int nc, const double *c,
+                     const int *idx, const int *cnt, int nc, const double *c,
                      const signed char *act, double rho, double **P, double **M, int top) {
     const double *hj;
     if (top < 0) return 0;
@@ -191,12 +177,12 @@ static int factorise(int n, const int *nx, const int *nu, const double *h, const
                 const double *pk = p1 + (size_t)k * x1;
                 for (int r = 0; r < x1; ++r) t[r] += pk[r] * v;
             }
-            const double *at = abt + ab_offs[j];
-            for (int k = 0; k < x1; ++k) {  /* lower triangle, then mirror */
-                double v = t[k];
-                if (v == 0.0) continue;
-                const double *ak = at + (size_t)k * s;
-                for (int r = cc; r < s; ++r) m[r + cc * s] += ak[r] * v;
+            for (int r = cc; r < s; ++r) {  /* lower triangle, then mirror */
+                const double *ar = a + (size_t)r * x1;
+                const int *ir = ix + (size_t)r * x1;
+                double acc = 0.0;
+                for (int i = 0; i < cn[r]; ++i) acc += ar[ir[i]] * t[ir[i]];
+                m[r + cc * s] += acc;
             }
         }
         for (int cc = 0; cc < s; ++cc)
@@ -235,7 +221,7 @@ static int factorise(int n, const int *nx, const int *nu, const double *h, const
 /* Linear terms -> solution z, for fixed factorisation. g is the full gradient (q plus the
  * augmented-Lagrangian terms), gc the terminal part C'(lamc - rho d). */
 static void vector_pass(int n, const int *nx, const int *nu, const double *ab,
-                        const double *abt, const double *b, const double *g,
+                        const int *idx, const int *cnt, const double *b, const double *g,
                         double **P, double **M, double *pv, double *scratch, double *z) {
     size_t ab_offs[n + 1], b_offs[n + 1];
     size_t ab_off = 0, b_off = 0;
@@ -251,6 +237,7 @@ static void vector_pass(int n, const int *nx, const int *nu, const double *ab,
     double *mvecs = z;  /* reuse: m_j at offset of stage j */
     for (int j = n - 1; j >= 0; --j) {
         int x = nx[j], u = nu[j], s = x + u, x1 = nx[j + 1];
+        const double *a = ab + ab_offs[j];
         const double *p1 = P[j + 1];
         const double *m = M[j];
         int o = off_w(nx, nu, j);
@@ -263,14 +250,14 @@ static void vector_pass(int n, const int *nx, const int *nu, const double *ab,
             if (v == 0.0) continue;
             for (int r = 0; r < x1; ++r) w[r] += p1[r + (size_t)k * x1] * v;
         }
-        /* m = g_j + AB' w, as a sum of the columns of AB' */
-        const double *at = abt + ab_offs[j];
-        for (int r = 0; r < s; ++r) mv[r] = g[o + r];
-        for (int k = 0; k < x1; ++k) {
-            double v = w[k];
-            if (v == 0.0) continue;
-            const double *ak = at + (size_t)k * s;
-            for (int r = 0; r < s; ++r) mv[r] += ak[r] * v;
+        /* m = g_j + AB' w, over the nonzeros of AB */
+        const int *ix = idx + ab_offs[j], *cn = cnt + o;
+        for (int r = 0; r < s; ++r) {
+            double acc = g[o + r];
+            const double *ar = a + (size_t)r * x1;
+            const int *ir = ix + (size_t)r * x1;
+            for (int i = 0; i < cn[r]; ++i) acc += ar[ir[i]] * w[ir[i]];
+            mv[r] = acc;
         }
         /* k_j = -M_uu^{-1} m_u (kept in mv's u slots); p_j = m_x + K' m_u */
         double mu[u > 0 ? u : 1];
@@ -314,7 +301,7 @@ static void vector_pass(int n, const int *nx, const int *nu, const double *ab,
 typedef struct {
     int n, nc, nw, max_passes;
     const int *nx, *nu, *idx, *cnt;  /* idx, cnt: nonzero lists of the AB columns */
-    const double *h, *q, *ab, *abt, *b, *c, *d;  /* abt: the AB_j' */
+    const double *h, *q, *ab, *b, *c, *d;
     double rho, eq_tol;
     double **P, **M, *g, *pv, *scratch;
     double *dlam, *dlamc;  /* last multiplier update: the dual direction when inconsistent */
@@ -340,7 +327,7 @@ static int changed_top(const problem *p, const signed char *act) {
 static int solve_eqp(problem *p, const signed char *act, const double *target,
                      double *lam, double *lamc, double *z, qp_stats *st) {
     int top = changed_top(p, act);
-    int info = factorise(p->n, p->nx, p->nu, p->h, p->ab, p->abt, p->idx, p->cnt, p->nc, p->c, act,
+    int info = factorise(p->n, p->nx, p->nu, p->h, p->ab, p->idx, p->cnt, p->nc, p->c, act,
                          p->rho, p->P, p->M, top);
     p->fact_valid = !info;
     if (info) return info;
@@ -356,7 +343,7 @@ static int solve_eqp(problem *p, const signed char *act, const double *target,
             for (int k = 0; k < nc; ++k) acc += p->c[k + r * nc] * (lamc[k] - p->rho * p->d[k]);
             p->g[on + r] += acc;
         }
-        vector_pass(p->n, p->nx, p->nu, p->ab, p->abt, p->b, p->g, p->P, p->M, p->pv,
+        vector_pass(p->n, p->nx, p->nu, p->ab, p->idx, p->cnt, p->b, p->g, p->P, p->M, p->pv,
                     p->scratch, z);
         double res = 0.0;
         for (int i = 0; i < p->nw; ++i)
@@ -409,7 +396,7 @@ int stage_qp_solve(int n, const int *nx, const int *nu, const double *h, const d
             hj += (size_t)s * s;
         }
     }
-    problem pr = {n, nc, nw, max_passes, nx, nu, NULL, NULL, h, q, ab, NULL, b, c, d, rho * hmax,
+    problem pr = {n, nc, nw, max_passes, nx, nu, NULL, NULL, h, q, ab, b, c, d, rho * hmax,
                   eq_tol, P, M, NULL, NULL, NULL, NULL, NULL, NULL, 0, reuse};
     pr.g = wp; wp += nw;
     pr.pv = wp; wp += nw;
@@ -425,14 +412,7 @@ int stage_qp_solve(int n, const int *nx, const int *nu, const double *h, const d
         for (int j = 0; j <= n; ++j) mx = nx[j] > mx ? nx[j] : mx;
         wp += mx;
     }
-    /* AB is fixed during a solve: its transposes and the nonzero lists of its columns serve
-     * every factorisation and pass. */
-    {
-        double *abt = wp;
-        for (int j = 0; j < n; ++j) wp += (size_t)nx[j + 1] * (nx[j] + nu[j]);
-        transposes(n, nx, nu, ab, abt);
-        pr.abt = abt;
-    }
+    /* AB is fixed during a solve: its nonzero lists serve every factorisation and pass. */
     int *idx = (int *)wp, *cnt = idx;
     for (int j = 0; j < n; ++j) cnt += (size_t)nx[j + 1] * (nx[j] + nu[j]);
     nonzeros(n, nx, nu, ab, idx, cnt);
