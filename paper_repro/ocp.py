@@ -157,6 +157,30 @@ class OCP:
             return np.asarray(x, float)[self._selected]
         return np.asarray(self.h(x), float).ravel()
 
+    def state_box(self, x0) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper), (n_x,) each: the box the plan x_1..x_N must stay in, from the
+        measured state x0 (n_x,). Both solvers read it at every sampling instant.
+
+        While x0 ∈ 𝒳 this is 𝒳 itself (eq. 7, the paper). A measured state outside 𝒳 (a
+        disturbance; or the plant overshooting a plan whose step the line search shortened,
+        which leaves the model's gaps open, near a collision) would make the hard bounds
+        infeasible from then on: a roll rate of 3.1 rad/s against the bound π/2 asks for
+        153 rad/s² in one step of 0.01 s where the rotors give at most 110, so every later
+        QP fails and the vehicle tumbles. A component that x0 violates by e is therefore
+        bounded at 2e beyond its bound instead (room for the one or two steps the state keeps
+        moving outwards while it is braked), on every stage of the plan. The relaxation is
+        recomputed from every measurement, so it shrinks as the state comes back, and the
+        terminal equality x_N = x_a still ends the plan at rest inside λ(𝒳 × 𝒰).
+        Returns the arrays of :attr:`state_bounds` themselves (not copies) when x0 ∈ 𝒳.
+        """
+        lower, upper = self.state_bounds
+        x0 = np.asarray(x0, float)
+        below, above = x0 < lower, x0 > upper
+        if not (below.any() or above.any()):
+            return lower, upper
+        return (np.where(below, 2.0 * x0 - lower, lower),
+                np.where(above, 2.0 * x0 - upper, upper))
+
     # The artificial equilibrium: a parametrisation (x_a, u_a) = E(a), read by both solvers.
 
     @property

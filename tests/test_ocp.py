@@ -220,6 +220,29 @@ def test_the_quadrotor_equilibrium_box_is_the_relaxed_box_at_position_and_yaw():
     assert np.all(u_a == ocp.config.quadrotor.hover_thrust)
 
 
+def test_the_state_box_is_x_inside_and_holds_a_measured_state_outside_with_room():
+    ocp = OCP(_config())
+    lo, hi = ocp.state_bounds
+    x0, _ = equilibrium([1.0, 2.0, 3.0])
+    assert all(a is b for a, b in zip(ocp.state_box(x0), ocp.state_bounds))
+    x0[9], x0[3] = 3.1, -0.7  # roll rate above π/2, roll below −π/6
+    low, up = ocp.state_box(x0)
+    # Only the violated sides move, each to twice the excess beyond its bound.
+    assert up[9] == pytest.approx(hi[9] + 2 * (3.1 - hi[9]))
+    assert low[3] == pytest.approx(lo[3] - 2 * (lo[3] + 0.7))
+    keep = np.ones(ocp.nx, bool)
+    keep[[3, 9]] = False
+    np.testing.assert_array_equal(low[keep], lo[keep])
+    np.testing.assert_array_equal(up[keep], hi[keep])
+    assert low[9] == lo[9] and up[3] == hi[3]
+    assert np.all(low < x0) and np.all(x0 < up)  # strictly inside: room to move outwards
+    # Both solvers' bounds on x_1..x_N come from it.
+    layout = QPLayout.of(ocp)
+    lb, ub = layout.bounds(ocp, x0)
+    np.testing.assert_array_equal(lb[layout.ix], np.tile(low, (ocp.horizon, 1)))
+    np.testing.assert_array_equal(ub[layout.ix], np.tile(up, (ocp.horizon, 1)))
+
+
 _X = ca.SX.sym("x", 2)
 
 

@@ -10,6 +10,7 @@ from paper_repro.controllers import make_controller
 from paper_repro.metrics import COLLISION_CLEARANCE
 from paper_repro.model import equilibrium, rk4_discretisation
 from paper_repro.nmpc import TrackingNMPC
+from paper_repro.plant import Plant
 from paper_repro.rti import RealTimeNMPC
 from paper_repro.simulation import simulate
 
@@ -177,10 +178,56 @@ def test_qp_failure_is_reported_not_raised(scene):
     reports it and the closed loop would fall back on the shifted plan."""
     fast = RealTimeNMPC(_config())
     x0, _ = equilibrium([-18.0, 0.0, 2.0])
-    x0[10] = 40.0  # pitch rate far beyond π/2: x_1 cannot satisfy the rate bound
+    # Pitch rate 40 rad/s: even in the relaxed box (OCP.state_box) the rotors' 110 rad/s²
+    # cannot bring it to rest (x_N = x_a) within the horizon's 0.35 s.
+    x0[10] = 40.0
     sol = fast.solve(x0, scene.targets[0], ())
     assert not sol.success
     assert sol.status == "qp_failed"
+
+
+def test_a_state_outside_x_is_flown_back_into_it_where_hard_bounds_had_no_plan(scene):
+    """The moving-obstacle study's diverged run: a roll rate of 3.1 rad/s (bound π/2) after a
+    near-collision. Braking it into 𝒳 within one step of 0.01 s needs 153 rad/s² where the
+    rotors give 110, so with 𝒳 as hard bounds the QP has no solution (checked first). With
+    the relaxed box every solve succeeds and the closed loop is back in 𝒳 within 0.1 s."""
+    fast = RealTimeNMPC(_config())
+    ocp = fast.ocp
+    x0, _ = equilibrium([-18.0, 0.0, 2.0])
+    x0[9] = 3.1
+    target = scene.targets[0]
+    hard = RealTimeNMPC(_config())
+    hard.ocp.state_box = lambda x: hard.ocp.state_bounds  # no relaxation
+    assert hard.solve(x0, target, ()).status == "qp_failed"
+
+    plant = Plant(ocp.config.quadrotor, ts=ocp.config.nmpc.ts)
+    lo, hi = ocp.state_bounds
+    x, plan, inside = x0, None, []
+    for _ in range(100):
+        plan = fast.solve(x, target, (), previous=plan)
+        assert plan.success, plan.status
+        x = plant.step(x, plan.u[0])
+        inside.append(bool(np.all((lo <= x) & (x <= hi))))
+    first = inside.index(True)
+    assert first < 10 and all(inside[first:])
+    assert fast.qp_counts["failed"] == 0
+
+
+def test_both_solvers_find_the_same_plan_in_the_relaxed_box(reference, scene):
+    """From a state outside 𝒳 both solvers read the same relaxed box (OCP.state_box): the
+    converged SQP and IPOPT reach the same optimum, and the plan keeps to that box."""
+    fast = RealTimeNMPC(_config(), max_iter=40, step_tol=1e-10)
+    x0, _ = equilibrium([-18.0, 0.0, 2.0])
+    x0[9] = 3.1
+    ref = reference.solve(x0, scene.targets[0], ())
+    sol = fast.solve(x0, scene.targets[0], ())
+    assert ref.success and sol.success and sol.status == "converged"
+    np.testing.assert_allclose(sol.x, ref.x, atol=1e-4)
+    np.testing.assert_allclose(sol.u, ref.u, atol=1e-3)
+    low, up = fast.ocp.state_box(x0)
+    assert up[9] > np.pi / 2  # relaxed
+    for plan in (sol, ref):
+        assert np.all(plan.x[1:] >= low - 1e-7) and np.all(plan.x[1:] <= up + 1e-7)
 
 
 def test_bad_options_are_rejected():
