@@ -186,6 +186,9 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
       also per second of flight (``tv_u_rate_N_per_s``), so runs of different lengths compare.
     * solve times (median, p95, p99, max), ``failed_solves``, ``dropped_points`` (non-finite
       scan points) and ``fault_steps`` (steps without a usable state or solve).
+    * ``steps_outside_state_box``: steps whose state lies outside the box 𝒳 of
+      ``config.nmpc`` (where :meth:`~paper_repro.ocp.OCP.state_box` relaxes the bounds); NaN
+      for a vehicle with another state.
     * the set-up's hazards (``meta["hazards"]``, :func:`paper_repro.safety.setup_hazards`):
       ``start_unsafe``, ``target_unsafe``, ``target_unreachable``.
     * thrust steps at changes of the visible set (:func:`scan_change_steps`): ``scan_changes``,
@@ -204,6 +207,10 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
     wall = float(result.meta.get("wall_time_s", float("nan")))
     hazards = result.meta.get("hazards") or {}
     at_changes, around = scan_change_steps(result)
+    x = np.asarray(result.x, float)[1:]  # the states reached, not the start
+    lower, upper = np.asarray(cfg.nmpc.state_lower), np.asarray(cfg.nmpc.state_upper)
+    outside = (float(np.sum(np.any((x < lower) | (x > upper), axis=1)))
+               if x.ndim == 2 and x.shape[1] == lower.size else float("nan"))
     return {
         "run": f"{result.scene.name}/{cfg.distance.metric}",
         "metric": cfg.distance.metric,
@@ -232,6 +239,7 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
         "failed_solves": int(np.sum(~np.asarray(result.success, bool))),
         "dropped_points": int(np.sum(result.dropped_points)),
         "fault_steps": int(np.isin(result.status, ("state_fault", "solve_error")).sum()),
+        "steps_outside_state_box": outside,
         "start_unsafe": bool(hazards.get("start_unsafe", False)),
         "target_unsafe": bool(any(hazards.get("targets_unsafe") or [])),
         "target_unreachable": bool(any(hazards.get("targets_unreachable") or [])),

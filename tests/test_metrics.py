@@ -177,6 +177,16 @@ def test_summary_row_flags_collision_below_the_rotor_arm_and_stalls():
     assert stalled["stalled"] and not stalled["completed"] and stalled["outcome"] == "stalled"
 
 
+def test_steps_outside_the_state_box_count_each_step_once_and_not_the_start():
+    r = _result()
+    assert summary_row(r)["steps_outside_state_box"] == 0
+    r.x[0, 9] = 3.0                     # the start does not count
+    r.x[5, 9] = r.x[5, 3] = 3.0         # roll rate and roll out at one step: one step
+    r.x[7, 2] = -0.1                    # below the ground
+    r.x[8, 9] = np.pi / 2               # on the bound is inside
+    assert summary_row(r)["steps_outside_state_box"] == 2
+
+
 def test_summary_table_has_one_row_per_run():
     table = summary_table([_result(), _result()])
     assert len(table) == 2 and table.index.name == "run"
