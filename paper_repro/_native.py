@@ -49,13 +49,16 @@ def _cpu_tag() -> bytes:
     return "\n".join(keep).encode()
 
 
-def build_library(name: str, source: bytes, key_extra: bytes = b"") -> Path:
+def build_library(name: str, source: bytes, key_extra: bytes = b"",
+                  flags: tuple[str, ...] = ()) -> Path:
     """Compile C ``source`` into a shared library (once per source, flags and CPU);
-    ``key_extra`` also enters the cache key (e.g. the version of the code generator)."""
+    ``key_extra`` also enters the cache key (e.g. the version of the code generator), and
+    ``flags`` are added to :data:`FLAGS` (e.g. ``-DNAME=value``)."""
     cc = compiler()
     if cc is None:
         raise RuntimeError("no C compiler found (set CC or install gcc)")
-    digest = hashlib.sha256(source + key_extra + " ".join(FLAGS).encode() + _cpu_tag())
+    flags = (*FLAGS, *flags)
+    digest = hashlib.sha256(source + key_extra + " ".join(flags).encode() + _cpu_tag())
     key = digest.hexdigest()[:16]
     lib = cache_dir() / f"{name}_{key}.so"
     if not lib.exists():
@@ -66,7 +69,7 @@ def build_library(name: str, source: bytes, key_extra: bytes = b"") -> Path:
             src = Path(tmp) / f"{name}.c"
             src.write_bytes(source)
             try:
-                result = subprocess.run([cc, *FLAGS, str(src), "-o", str(out), "-lm"],
+                result = subprocess.run([cc, *flags, str(src), "-o", str(out), "-lm"],
                                         capture_output=True, text=True)
                 if result.returncode:
                     raise RuntimeError(f"{cc} failed to build {name}:\n{result.stderr}")

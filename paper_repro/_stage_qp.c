@@ -25,11 +25,42 @@
  * Storage: matrices column-major; blocks of all stages concatenated.  H_j is s_j x s_j with
  * s_j = nx_j + nu_j; AB_j is nx_{j+1} x s_j; C is nc x nx_N.
  *
+ * Speed: the stages are a few dozen numbers wide, where loops cost more than arithmetic.
+ * Each stage's work is one kernel written for sizes (x, u, x1) = (nx_j, nu_j, nx_{j+1});
+ * compiled with -DSQP_NX=a -DSQP_NU=b, the kernels are also instantiated for the constant
+ * sizes (a, b, a), which stages of those sizes use: fixed trip counts let the compiler
+ * vectorise and unroll them. Both instances do the same operations in the same order, so
+ * they give the same numbers; the generic one serves all other stages.
+ *
  * Return: 0 solved; 1 max_outer EQPs used; 2 infeasible (or an EQP that could not be made
  * consistent); 3 a factorisation was not positive definite; 4 workspace too small.
  */
 #include <math.h>
 #include <string.h>
+
+/* The stage kernels are inlined into a generic and a fixed-size instance each (TUNED). */
+#define KERNEL static inline __attribute__((always_inline))
+/* Loops over a stage's rows, fully unrolled where the size is a constant: the compiler then
+ * keeps the accumulators in registers, not in memory (a store and a reload in every step of
+ * a chain of multiply-adds); 1.5x on the crossing's QPs. */
+#define UNROLL _Pragma("GCC unroll 32")
+/* 256-bit vectors for the stage kernels, also where 512-bit ones exist: rows of 18 leave
+ * masked remainders, for which gcc 12 resorts to gathers. Measured on an AVX-512 EPYC:
+ * 0.18 s for the crossing's 376 hard QPs against 0.22 s with 512 bits. */
+#if defined(__GNUC__) && !defined(__clang__) && (defined(__x86_64__) || defined(__i386__))
+#define TUNED __attribute__((noinline, target("prefer-vector-width=256")))
+#else
+#define TUNED __attribute__((noinline))
+#endif
+
+/* Multiply-adds are fused explicitly. Left to itself the compiler fuses a*b + c in some
+ * loops and not in others (not in sums it vectorises in order, nor in some masked vector
+ * remainders), and decides differently for the generic and the fixed-size instances: their
+ * results would differ in the last bits. (-D'FMA(a,b,c)=((a)*(b)+(c))'
+ * with -ffp-contract=off gives the unfused arithmetic, for comparisons.) */
+#ifndef FMA
+#define FMA(a, b, c) fma(a, b, c)
+#endif
 
 typedef struct {
     int outer;    /* active-set iterations used */
@@ -46,16 +77,16 @@ static int off_w(const int *nx, const int *nu, int j) {
 }
 
 /* In-place Cholesky of the leading n x n block (stride ld); lower triangle. */
-static int chol(double *a, int n, int ld) {
+KERNEL int chol(double *a, int n, int ld) {
     for (int k = 0; k < n; ++k) {
         double d = a[k + k * ld];
-        for (int i = 0; i < k; ++i) d -= a[k + i * ld] * a[k + i * ld];
+        for (int i = 0; i < k; ++i) d = FMA(-a[k + i * ld], a[k + i * ld], d);
         if (!(d > 0.0)) return 1;
         d = sqrt(d);
         a[k + k * ld] = d;
         for (int r = k + 1; r < n; ++r) {
             double s = a[r + k * ld];
-            for (int i = 0; i < k; ++i) s -= a[r + i * ld] * a[k + i * ld];
+            for (int i = 0; i < k; ++i) s = FMA(-a[r + i * ld], a[k + i * ld], s);
             a[r + k * ld] = s / d;
         }
     }
@@ -63,15 +94,15 @@ static int chol(double *a, int n, int ld) {
 }
 
 /* Solve L L' v = v in place (L lower, stride ld). */
-static void chol_solve(const double *l, int n, int ld, double *v) {
+KERNEL void chol_solve(const double *l, int n, int ld, double *v) {
     for (int k = 0; k < n; ++k) {
         double s = v[k];
-        for (int i = 0; i < k; ++i) s -= l[k + i * ld] * v[i];
+        for (int i = 0; i < k; ++i) s = FMA(-l[k + i * ld], v[i], s);
         v[k] = s / l[k + k * ld];
     }
     for (int k = n - 1; k >= 0; --k) {
         double s = v[k];
-        for (int i = k + 1; i < n; ++i) s -= l[i + k * ld] * v[i];
+        for (int i = k + 1; i < n; ++i) s = FMA(-l[i + k * ld], v[i], s);
         v[k] = s / l[k + k * ld];
     }
 }
@@ -87,11 +118,11 @@ size_t stage_qp_workspace(int n, const int *nx, const int *nu, int nc) {
         nw += s;
         mx = nx[j] > mx ? nx[j] : mx;
     }
-    /* g, pv, target, z0, lam0, dlam; scratch; lamc0, dlamc; the nonzero lists of the AB
+    /* g, pv, target, z0, lam0, dlam; C'C; lamc0, dlamc; the nonzero lists of the AB
      * columns (ints: one row index per entry of AB_j, one count per column), in doubles;
      * the active set of the current factors (chars) */
-    return w + 6 * nw + mx + 2 * (size_t)nc + (nz_ints(n, nx, nu) + 1) / 2
-           + (nw + sizeof(double) - 1) / sizeof(double);
+    return w + 6 * nw + (size_t)nx[n] * nx[n] + 2 * (size_t)nc
+           + (nz_ints(n, nx, nu) + 1) / 2 + (nw + sizeof(double) - 1) / sizeof(double);
 }
 
 /* Entries of the nonzero lists: rows of every AB_j column, then a count per column. */
@@ -118,204 +149,281 @@ static void nonzeros(int n, const int *nx, const int *nu, const double *ab, int 
     }
 }
 
-/* Factorise with the current active set. P_j, and M_j holding L_uu (Cholesky of the input
- * block) and K_j = -M_uu^{-1} M_ux in its (u, x) block; P_0 is left as its Cholesky factor.
- * The recursion runs backward, so stage j's factors depend on the active bounds of stages
- * j..N only: stages above `top` (the highest whose bounds changed since the last call) are
- * kept, and the call redoes stages top..0. */
-static int factorise(int n, const int *nx, const int *nu, const double *h, const double *ab,
-                     const int *idx, const int *cnt, int nc, const double *c,
-                     const signed char *act, double rho, double **P, double **M, int top) {
-    const double *hj;
-    if (top < 0) return 0;
-    /* Stage N: P_N = H_N + rho C'C + rho on active entries. */
-    if (top >= n) {
-        int s = nx[n];
-        hj = h;
-        for (int j = 0; j < n; ++j) hj += (size_t)(nx[j] + nu[j]) * (nx[j] + nu[j]);
-        double *p = P[n];
-        memcpy(p, hj, sizeof(double) * s * s);
-        for (int cc = 0; cc < s; ++cc)
-            for (int r = 0; r < s; ++r) {
-                double acc = 0.0;
-                for (int k = 0; k < nc; ++k) acc += c[k + r * nc] * c[k + cc * nc];
-                p[r + cc * s] += rho * acc;
-            }
-        int o = off_w(nx, nu, n);
-        for (int i = 0; i < s; ++i)
-            if (act[o + i]) p[i + i * s] += rho;
-    }
-    /* Backward over stages. */
-    size_t h_off = 0, ab_off = 0;
-    size_t h_offs[n + 1], ab_offs[n + 1];
-    for (int j = 0; j < n; ++j) {
-        h_offs[j] = h_off;
-        ab_offs[j] = ab_off;
-        h_off += (size_t)(nx[j] + nu[j]) * (nx[j] + nu[j]);
-        ab_off += (size_t)nx[j + 1] * (nx[j] + nu[j]);
-    }
-    for (int j = (top < n ? top : n - 1); j >= 0; --j) {
-        int x = nx[j], u = nu[j], s = x + u, x1 = nx[j + 1];
-        const double *a = ab + ab_offs[j];
-        const int *ix = idx + ab_offs[j], *cn = cnt + off_w(nx, nu, j);
-        const double *p1 = P[j + 1];
-        double *m = M[j];
-        memcpy(m, h + h_offs[j], sizeof(double) * s * s);
-        int o = off_w(nx, nu, j);
-        for (int i = 0; i < s; ++i)
-            if (act[o + i]) m[i + i * s] += rho;
-        /* m += AB' P AB, one column of P AB at a time, over the nonzeros of AB. */
-        double t[x1];
-        for (int cc = 0; cc < s; ++cc) {
-            if (!cn[cc]) continue;  /* a zero column of AB adds nothing */
-            const double *acol = a + (size_t)cc * x1;
-            const int *ic = ix + (size_t)cc * x1;
-            for (int r = 0; r < x1; ++r) t[r] = 0.0;
-            for (int i = 0; i < cn[cc]; ++i) {
-                int k = ic[i];
-                double v = acol[k];
-                const double *pk = p1 + (size_t)k * x1;
-                for (int r = 0; r < x1; ++r) t[r] += pk[r] * v;
-            }
-            for (int r = cc; r < s; ++r) {  /* lower triangle, then mirror */
-                const double *ar = a + (size_t)r * x1;
-                const int *ir = ix + (size_t)r * x1;
-                double acc = 0.0;
-                for (int i = 0; i < cn[r]; ++i) acc += ar[ir[i]] * t[ir[i]];
-                m[r + cc * s] += acc;
-            }
-        }
-        for (int cc = 0; cc < s; ++cc)
-            for (int r = 0; r < cc; ++r) m[r + cc * s] = m[cc + r * s];
-        /* Input block: Cholesky; K = -M_uu^{-1} M_ux stored over M_ux. */
-        if (u > 0) {
-            if (chol(m + x + x * s, u, s)) return 3;
-            for (int cc = 0; cc < x; ++cc) {
-                double v[u];
-                for (int i = 0; i < u; ++i) v[i] = m[x + i + cc * s];
-                chol_solve(m + x + x * s, u, s, v);
-                for (int i = 0; i < u; ++i) m[x + i + cc * s] = -v[i];
-            }
-        }
-        /* P_j = M_xx + M_xu K = M_xx + K' M_ux, with M_ux = M_xu' kept in the upper block. */
-        /* Column by column, adding the u terms in the same order as a dot product would,
-         * but along r, which the compiler vectorises. */
-        double *p = P[j];
-        for (int cc = 0; cc < x; ++cc)
-            for (int r = 0; r < x; ++r) {
-                double acc = m[r + cc * s];
-                for (int i = 0; i < u; ++i) acc += m[r + (x + i) * s] * m[x + i + cc * s];
-                p[r + cc * x] = acc;
-            }
-        for (int cc = 0; cc < x; ++cc)
-            for (int r = cc + 1; r < x; ++r) {
-                double v = 0.5 * (p[r + cc * x] + p[cc + r * x]);
-                p[r + cc * x] = p[cc + r * x] = v;
-            }
-    }
-    /* x_0 is free: factorise P_0 in place. */
-    if (chol(P[0], nx[0], nx[0])) return 3;
-    return 0;
-}
-
-/* Linear terms -> solution z, for fixed factorisation. g is the full gradient (q plus the
- * augmented-Lagrangian terms), gc the terminal part C'(lamc - rho d). */
-static void vector_pass(int n, const int *nx, const int *nu, const double *ab,
-                        const int *idx, const int *cnt, const double *b, const double *g,
-                        double **P, double **M, double *pv, double *scratch, double *z) {
-    size_t ab_offs[n + 1], b_offs[n + 1];
-    size_t ab_off = 0, b_off = 0;
-    for (int j = 0; j < n; ++j) {
-        ab_offs[j] = ab_off;
-        b_offs[j] = b_off;
-        ab_off += (size_t)nx[j + 1] * (nx[j] + nu[j]);
-        b_off += nx[j + 1];
-    }
-    /* pv holds p_{j+1}; m_j is stored in z's slots temporarily (z_j = m_j, then replaced). */
-    int on = off_w(nx, nu, n);
-    memcpy(pv, g + on, sizeof(double) * nx[n]);
-    double *mvecs = z;  /* reuse: m_j at offset of stage j */
-    for (int j = n - 1; j >= 0; --j) {
-        int x = nx[j], u = nu[j], s = x + u, x1 = nx[j + 1];
-        const double *a = ab + ab_offs[j];
-        const double *p1 = P[j + 1];
-        const double *m = M[j];
-        int o = off_w(nx, nu, j);
-        double *mv = mvecs + o;
-        /* w = P_{j+1} b_j + p_{j+1} */
-        double *w = scratch;
-        for (int r = 0; r < x1; ++r) w[r] = pv[r];
-        for (int k = 0; k < x1; ++k) {
-            double v = b[b_offs[j] + k];
-            if (v == 0.0) continue;
-            for (int r = 0; r < x1; ++r) w[r] += p1[r + (size_t)k * x1] * v;
-        }
-        /* m = g_j + AB' w, over the nonzeros of AB */
-        const int *ix = idx + ab_offs[j], *cn = cnt + o;
-        for (int r = 0; r < s; ++r) {
-            double acc = g[o + r];
-            const double *ar = a + (size_t)r * x1;
-            const int *ir = ix + (size_t)r * x1;
-            for (int i = 0; i < cn[r]; ++i) acc += ar[ir[i]] * w[ir[i]];
-            mv[r] = acc;
-        }
-        /* k_j = -M_uu^{-1} m_u (kept in mv's u slots); p_j = m_x + K' m_u */
-        double mu[u > 0 ? u : 1];
-        for (int i = 0; i < u; ++i) mu[i] = mv[x + i];
-        for (int r = 0; r < x; ++r) {
-            double acc = mv[r];
-            for (int i = 0; i < u; ++i) acc += m[x + i + r * s] * mu[i];
-            pv[r] = acc;
-        }
-        if (u > 0) {
-            chol_solve(m + x + x * s, u, s, mu);
-            for (int i = 0; i < u; ++i) mv[x + i] = -mu[i];
-        }
-    }
-    /* x_0 = -P_0^{-1} p_0 */
-    for (int r = 0; r < nx[0]; ++r) z[r] = -pv[r];
-    chol_solve(P[0], nx[0], nx[0], z);
-    /* Forward: u_j = K_j x_j + k_j, x_{j+1} = AB_j z_j + b_j. */
-    for (int j = 0; j < n; ++j) {
-        int x = nx[j], u = nu[j], s = x + u, x1 = nx[j + 1];
-        const double *m = M[j];
-        int o = off_w(nx, nu, j);
-        double *zj = z + o;
-        for (int i = 0; i < u; ++i) {
-            double acc = zj[x + i];  /* k_j */
-            for (int r = 0; r < x; ++r) acc += m[x + i + r * s] * zj[r];
-            zj[x + i] = acc;
-        }
-        double *zn = z + o + s;
-        const double *a = ab + ab_offs[j];
-        for (int r = 0; r < x1; ++r) zn[r] = b[b_offs[j] + r];
-        for (int cc = 0; cc < s; ++cc) {
-            double v = zj[cc];
-            if (v == 0.0) continue;
-            const double *acol = a + (size_t)cc * x1;
-            for (int r = 0; r < x1; ++r) zn[r] += acol[r] * v;
-        }
-    }
-}
-
 typedef struct {
     int n, nc, nw, max_passes;
     const int *nx, *nu, *idx, *cnt;  /* idx, cnt: nonzero lists of the AB columns */
     const double *h, *q, *ab, *b, *c, *d;
     double rho, eq_tol;
-    double **P, **M, *g, *pv, *scratch;
+    double **P, **M, *g, *pv, *ctc;  /* ctc: C'C */
     double *dlam, *dlamc;  /* last multiplier update: the dual direction when inconsistent */
     signed char *fact_act; /* the active set of the current factors, */
     int fact_valid;        /* if any (not at the start of a call, nor after a failed one) */
     int reuse;             /* 0: refactorise every stage every time (a check of the reuse) */
+    /* Offsets of stage j's blocks, computed once per solve rather than summed over the
+     * stages below at every use (that was O(N^2) per factorisation and per pass). */
+    const size_t *oz, *oh, *oab, *ob;  /* z_j (and cnt_j), H_j, AB_j (and idx_j), b_j */
 } problem;
+
+/* ---- Stage kernels: sizes x = nx_j, u = nu_j, x1 = nx_{j+1}, s = x + u. ----
+ * M_j holds, after factor_stage: L_uu (Cholesky factor of the input block) in its lower
+ * (u, u) block, K_j' (x by u, K_j = -M_uu^{-1} M_ux) in its upper right block, M_ux in its
+ * lower left one. K is kept transposed so that every use runs along a contiguous column of
+ * length x, which vectorises. */
+
+/* M_j = H_j + rho (active) + AB' P_{j+1} AB, its Cholesky/K, and P_j. */
+KERNEL int factor_stage(const int x, const int u, const int x1, const double *restrict h,
+                        const signed char *restrict act, double rho,
+                        const double *restrict a, const int *restrict ix,
+                        const int *restrict cn, const double *restrict p1,
+                        double *restrict m, double *restrict p) {
+    const int s = x + u;
+    /* tt = (P_{j+1} AB)', column k being row k of P AB: the next product then takes whole
+     * contiguous rows of it. Each column of P AB sums over the nonzeros of AB's column. */
+    double tt[s * x1];
+    for (int cc = 0; cc < s; ++cc) {
+        double t[x1];
+        UNROLL for (int r = 0; r < x1; ++r) t[r] = 0.0;
+        const double *acol = a + (size_t)cc * x1;
+        const int *ic = ix + (size_t)cc * x1;
+        for (int i = 0; i < cn[cc]; ++i) {
+            int k = ic[i];
+            double v = acol[k];
+            const double *pk = p1 + (size_t)k * x1;
+            UNROLL for (int r = 0; r < x1; ++r) t[r] = FMA(pk[r], v, t[r]);
+        }
+        UNROLL for (int k = 0; k < x1; ++k) tt[cc + k * s] = t[k];
+    }
+    /* Column r of AB' (P AB) = sum over the nonzeros AB_kr of AB_kr tt[:, k]: element c is
+     * the dot product of AB[:, r] with column c of P AB, summed in the same order as the
+     * dot product would be, but along c, which vectorises. Entries c <= r are kept (upper
+     * triangle), the rest mirrored from them, so M is exactly symmetric. */
+    for (int r = 0; r < s; ++r) {
+        double acc[s];
+        UNROLL for (int c = 0; c < s; ++c) acc[c] = 0.0;
+        const double *ar = a + (size_t)r * x1;
+        const int *ir = ix + (size_t)r * x1;
+        for (int i = 0; i < cn[r]; ++i) {
+            int k = ir[i];
+            double v = ar[k];
+            const double *tk = tt + k * s;
+            UNROLL for (int c = 0; c < s; ++c) acc[c] = FMA(tk[c], v, acc[c]);
+        }
+        const double *hr = h + (size_t)r * s;
+        double *mr = m + (size_t)r * s;
+        for (int c = 0; c <= r; ++c) mr[c] = hr[c];
+        if (act[r]) mr[r] += rho;
+        for (int c = 0; c <= r; ++c) mr[c] += acc[c];
+    }
+    for (int cc = 0; cc < s; ++cc)
+        for (int r = cc + 1; r < s; ++r) m[r + cc * s] = m[cc + r * s];
+    /* Input block: Cholesky; K' = -M_xu M_uu^{-1}, the substitutions of chol_solve done for
+     * all x rows at once (same operations per row, in the same order). */
+    if (u > 0) {
+        double *l = m + x + (size_t)x * s;
+        if (chol(l, u, s)) return 3;
+        double kt[u * x];  /* a private copy: no aliasing with l, so the loops vectorise */
+        for (int i = 0; i < u; ++i)
+            for (int r = 0; r < x; ++r) kt[r + i * x] = m[r + (size_t)(x + i) * s];
+        for (int k = 0; k < u; ++k) {
+            double *vk = kt + k * x;
+            for (int i = 0; i < k; ++i) {
+                double c = l[k + i * s];
+                const double *vi = kt + i * x;
+                UNROLL for (int r = 0; r < x; ++r) vk[r] = FMA(-c, vi[r], vk[r]);
+            }
+            double dk = l[k + k * s];
+            UNROLL for (int r = 0; r < x; ++r) vk[r] = vk[r] / dk;
+        }
+        for (int k = u - 1; k >= 0; --k) {
+            double *vk = kt + k * x;
+            for (int i = k + 1; i < u; ++i) {
+                double c = l[i + k * s];
+                const double *vi = kt + i * x;
+                UNROLL for (int r = 0; r < x; ++r) vk[r] = FMA(-c, vi[r], vk[r]);
+            }
+            double dk = l[k + k * s];
+            UNROLL for (int r = 0; r < x; ++r) vk[r] = vk[r] / dk;
+        }
+        for (int i = 0; i < u; ++i)
+            for (int r = 0; r < x; ++r) m[r + (size_t)(x + i) * s] = -kt[r + i * x];
+    }
+    /* P_j = M_xx + K' M_ux, column by column (along r, which vectorises); then the mean of
+     * it and its transpose, exactly symmetric. */
+    const double *kt = m + (size_t)x * s;
+    for (int cc = 0; cc < x; ++cc) {
+        double col[x];
+        UNROLL for (int r = 0; r < x; ++r) col[r] = m[r + (size_t)cc * s];
+        for (int i = 0; i < u; ++i) {
+            double v = m[x + i + (size_t)cc * s];
+            const double *ki = kt + (size_t)i * s;
+            UNROLL for (int r = 0; r < x; ++r) col[r] = FMA(ki[r], v, col[r]);
+        }
+        UNROLL for (int r = 0; r < x; ++r) p[r + cc * x] = col[r];
+    }
+    for (int cc = 0; cc < x; ++cc)
+        for (int r = cc + 1; r < x; ++r) {
+            double v = 0.5 * (p[r + cc * x] + p[cc + r * x]);
+            p[r + cc * x] = p[cc + r * x] = v;
+        }
+    return 0;
+}
+
+/* Backward pass of stage j: pv holds p_{j+1} on entry, p_j on return; mv (stage j's slots
+ * of z) gets m_j's x part and k_j = -M_uu^{-1} m_u. */
+KERNEL void back_stage(const int x, const int u, const int x1, const double *restrict a,
+                       const int *restrict ix, const int *restrict cn,
+                       const double *restrict bj, const double *restrict gj,
+                       const double *restrict p1, const double *restrict m,
+                       double *restrict pv, double *restrict mv) {
+    const int s = x + u;
+    /* w = P_{j+1} b_j + p_{j+1} */
+    double w[x1];
+    UNROLL for (int r = 0; r < x1; ++r) w[r] = pv[r];
+    for (int k = 0; k < x1; ++k) {
+        double v = bj[k];
+        if (v == 0.0) continue;
+        UNROLL for (int r = 0; r < x1; ++r) w[r] = FMA(p1[r + (size_t)k * x1], v, w[r]);
+    }
+    /* m = g_j + AB' w, over the nonzeros of AB */
+    for (int r = 0; r < s; ++r) {
+        double acc = gj[r];
+        const double *ar = a + (size_t)r * x1;
+        const int *ir = ix + (size_t)r * x1;
+        for (int i = 0; i < cn[r]; ++i) acc = FMA(ar[ir[i]], w[ir[i]], acc);
+        mv[r] = acc;
+    }
+    /* p_j = m_x + K' m_u (along x); k_j = -M_uu^{-1} m_u (kept in mv's u slots) */
+    double mu[u > 0 ? u : 1];
+    for (int i = 0; i < u; ++i) mu[i] = mv[x + i];
+    const double *kt = m + (size_t)x * s;
+    double pj[x];
+    UNROLL for (int r = 0; r < x; ++r) pj[r] = mv[r];
+    for (int i = 0; i < u; ++i)
+        UNROLL for (int r = 0; r < x; ++r) pj[r] = FMA(kt[r + (size_t)i * s], mu[i], pj[r]);
+    UNROLL for (int r = 0; r < x; ++r) pv[r] = pj[r];
+    if (u > 0) {
+        chol_solve(m + x + (size_t)x * s, u, s, mu);
+        for (int i = 0; i < u; ++i) mv[x + i] = -mu[i];
+    }
+}
+
+/* Forward pass of stage j: u_j = K_j x_j + k_j, then x_{j+1} = AB_j z_j + b_j into zj + s. */
+KERNEL void fwd_stage(const int x, const int u, const int x1, const double *restrict a,
+                      const double *restrict bj, const double *restrict m,
+                      double *restrict zj) {
+    const int s = x + u;
+    const double *kt = m + (size_t)x * s;
+    /* the u sums side by side (each in its own order), not one after the other */
+    double acc[u > 0 ? u : 1];
+    UNROLL for (int i = 0; i < u; ++i) acc[i] = zj[x + i];  /* k_j */
+    for (int r = 0; r < x; ++r)
+        UNROLL for (int i = 0; i < u; ++i) acc[i] = FMA(kt[r + (size_t)i * s], zj[r], acc[i]);
+    UNROLL for (int i = 0; i < u; ++i) zj[x + i] = acc[i];
+    double zn[x1];
+    UNROLL for (int r = 0; r < x1; ++r) zn[r] = bj[r];
+    for (int cc = 0; cc < s; ++cc) {
+        double v = zj[cc];
+        if (v == 0.0) continue;
+        const double *acol = a + (size_t)cc * x1;
+        UNROLL for (int r = 0; r < x1; ++r) zn[r] = FMA(acol[r], v, zn[r]);
+    }
+    UNROLL for (int r = 0; r < x1; ++r) zj[s + r] = zn[r];
+}
+
+/* The generic instances, and (with SQP_NX, SQP_NU) the fixed-size ones. */
+#define INSTANCES(name, X, U, X1)                                                            \
+    static TUNED int factor_##name(                                     \
+        int x, int u, int x1, const double *h, const signed char *act, double rho,           \
+        const double *a, const int *ix, const int *cn, const double *p1, double *m,          \
+        double *p) {                                                                        \
+        (void)x; (void)u; (void)x1;                                                         \
+        return factor_stage(X, U, X1, h, act, rho, a, ix, cn, p1, m, p);                     \
+    }                                                                                       \
+    static TUNED void back_##name(                                      \
+        int x, int u, int x1, const double *a, const int *ix, const int *cn,                 \
+        const double *bj, const double *gj, const double *p1, const double *m, double *pv,   \
+        double *mv) {                                                                       \
+        (void)x; (void)u; (void)x1;                                                         \
+        back_stage(X, U, X1, a, ix, cn, bj, gj, p1, m, pv, mv);                              \
+    }                                                                                       \
+    static TUNED void fwd_##name(                                       \
+        int x, int u, int x1, const double *a, const double *bj, const double *m,           \
+        double *zj) {                                                                       \
+        (void)x; (void)u; (void)x1;                                                         \
+        fwd_stage(X, U, X1, a, bj, m, zj);                                                   \
+    }
+INSTANCES(any, x, u, x1)
+#if defined(SQP_NX) && defined(SQP_NU)
+INSTANCES(fixed, SQP_NX, SQP_NU, SQP_NX)
+#define IS_FIXED(x, u, x1) ((x) == SQP_NX && (u) == SQP_NU && (x1) == SQP_NX)
+#else
+#define IS_FIXED(x, u, x1) 0
+#define factor_fixed factor_any
+#define back_fixed back_any
+#define fwd_fixed fwd_any
+#endif
+
+/* Factorise with the current active set (P_j, M_j as described above the kernels; P_0 is
+ * left as its Cholesky factor). The recursion runs backward, so stage j's factors depend on
+ * the active bounds of stages j..N only: stages above `top` (the highest whose bounds
+ * changed since the last call) are kept, and the call redoes stages top..0. */
+static int factorise(const problem *pr, const signed char *act, int top) {
+    const int n = pr->n, *nx = pr->nx, *nu = pr->nu;
+    double rho = pr->rho;
+    if (top < 0) return 0;
+    /* Stage N: P_N = H_N + rho C'C + rho on active entries. */
+    if (top >= n) {
+        int s = nx[n];
+        const double *hj = pr->h + pr->oh[n];
+        double *p = pr->P[n];
+        for (int i = 0; i < s * s; ++i) p[i] = FMA(rho, pr->ctc[i], hj[i]);
+        const signed char *an = act + pr->oz[n];
+        for (int i = 0; i < s; ++i)
+            if (an[i]) p[i + i * s] += rho;
+    }
+    for (int j = (top < n ? top : n - 1); j >= 0; --j) {
+        int x = nx[j], u = nu[j], x1 = nx[j + 1];
+        int info = (IS_FIXED(x, u, x1) ? factor_fixed : factor_any)(
+            x, u, x1, pr->h + pr->oh[j], act + pr->oz[j], rho, pr->ab + pr->oab[j],
+            pr->idx + pr->oab[j], pr->cnt + pr->oz[j], pr->P[j + 1], pr->M[j], pr->P[j]);
+        if (info) return info;
+    }
+    /* x_0 is free: factorise P_0 in place. */
+    if (chol(pr->P[0], nx[0], nx[0])) return 3;
+    return 0;
+}
+
+/* Linear terms -> solution z, for fixed factorisation. g is the full gradient (q plus the
+ * augmented-Lagrangian terms, the terminal part included). */
+static void vector_pass(const problem *pr, const double *g, double *z) {
+    const int n = pr->n, *nx = pr->nx, *nu = pr->nu;
+    double *pv = pr->pv;
+    /* pv holds p_{j+1}; m_j is stored in z's slots temporarily (z_j = m_j, then replaced). */
+    memcpy(pv, g + pr->oz[n], sizeof(double) * nx[n]);
+    for (int j = n - 1; j >= 0; --j) {
+        int x = nx[j], u = nu[j], x1 = nx[j + 1];
+        size_t o = pr->oz[j];
+        (IS_FIXED(x, u, x1) ? back_fixed : back_any)(
+            x, u, x1, pr->ab + pr->oab[j], pr->idx + pr->oab[j], pr->cnt + o, pr->b + pr->ob[j],
+            g + o, pr->P[j + 1], pr->M[j], pv, z + o);
+    }
+    /* x_0 = -P_0^{-1} p_0 */
+    for (int r = 0; r < nx[0]; ++r) z[r] = -pv[r];
+    chol_solve(pr->P[0], nx[0], nx[0], z);
+    for (int j = 0; j < n; ++j) {
+        int x = nx[j], u = nu[j], x1 = nx[j + 1];
+        (IS_FIXED(x, u, x1) ? fwd_fixed : fwd_any)(x, u, x1, pr->ab + pr->oab[j],
+                                                   pr->b + pr->ob[j], pr->M[j], z + pr->oz[j]);
+    }
+}
 
 /* The highest stage whose active bounds differ from those of the current factors (n when
  * there are no factors, -1 when nothing changed). */
 static int changed_top(const problem *p, const signed char *act) {
     if (!p->fact_valid || !p->reuse) return p->n;
     for (int j = p->n; j >= 0; --j) {
-        int o = off_w(p->nx, p->nu, j), s = p->nx[j] + (j < p->n ? p->nu[j] : 0);
+        size_t o = p->oz[j];
+        int s = p->nx[j] + (j < p->n ? p->nu[j] : 0);
         if (memcmp(act + o, p->fact_act + o, (size_t)s)) return j;
     }
     return -1;
@@ -327,13 +435,12 @@ static int changed_top(const problem *p, const signed char *act) {
 static int solve_eqp(problem *p, const signed char *act, const double *target,
                      double *lam, double *lamc, double *z, qp_stats *st) {
     int top = changed_top(p, act);
-    int info = factorise(p->n, p->nx, p->nu, p->h, p->ab, p->idx, p->cnt, p->nc, p->c, act,
-                         p->rho, p->P, p->M, top);
+    int info = factorise(p, act, top);
     p->fact_valid = !info;
     if (info) return info;
     memcpy(p->fact_act, act, (size_t)p->nw);
     st->stages += top < p->n ? top + 1 : p->n + 1;
-    int on = off_w(p->nx, p->nu, p->n), xn = p->nx[p->n], nc = p->nc;
+    int on = (int)p->oz[p->n], xn = p->nx[p->n], nc = p->nc;
     for (int pass = 0; pass < p->max_passes; ++pass) {
         st->passes++;
         for (int i = 0; i < p->nw; ++i)
@@ -343,8 +450,7 @@ static int solve_eqp(problem *p, const signed char *act, const double *target,
             for (int k = 0; k < nc; ++k) acc += p->c[k + r * nc] * (lamc[k] - p->rho * p->d[k]);
             p->g[on + r] += acc;
         }
-        vector_pass(p->n, p->nx, p->nu, p->ab, p->idx, p->cnt, p->b, p->g, p->P, p->M, p->pv,
-                    p->scratch, z);
+        vector_pass(p, p->g, z);
         double res = 0.0;
         for (int i = 0; i < p->nw; ++i)
             if (act[i]) {
@@ -396,8 +502,19 @@ int stage_qp_solve(int n, const int *nx, const int *nu, const double *h, const d
             hj += (size_t)s * s;
         }
     }
+    /* Offsets of every stage's blocks (see problem). */
+    size_t oz[n + 1], oh[n + 1], oab[n + 1], ob[n + 1];
+    oz[0] = oh[0] = oab[0] = ob[0] = 0;
+    for (int j = 0; j < n; ++j) {
+        int s = nx[j] + nu[j];
+        oz[j + 1] = oz[j] + s;
+        oh[j + 1] = oh[j] + (size_t)s * s;
+        oab[j + 1] = oab[j] + (size_t)nx[j + 1] * s;
+        ob[j + 1] = ob[j] + nx[j + 1];
+    }
     problem pr = {n, nc, nw, max_passes, nx, nu, NULL, NULL, h, q, ab, b, c, d, rho * hmax,
-                  eq_tol, P, M, NULL, NULL, NULL, NULL, NULL, NULL, 0, reuse};
+                  eq_tol, P, M, NULL, NULL, NULL, NULL, NULL, NULL, 0, reuse,
+                  oz, oh, oab, ob};
     pr.g = wp; wp += nw;
     pr.pv = wp; wp += nw;
     double *target = wp; wp += nw;
@@ -406,15 +523,19 @@ int stage_qp_solve(int n, const int *nx, const int *nu, const double *h, const d
     pr.dlam = wp; wp += nw;
     double *lamc0 = wp; wp += nc;
     pr.dlamc = wp; wp += nc;
-    pr.scratch = wp;
+    /* C'C, the same at every full factorisation of this solve */
     {
-        int mx = 0;
-        for (int j = 0; j <= n; ++j) mx = nx[j] > mx ? nx[j] : mx;
-        wp += mx;
+        int xn = nx[n];
+        pr.ctc = wp; wp += (size_t)xn * xn;
+        for (int cc = 0; cc < xn; ++cc)
+            for (int r = 0; r < xn; ++r) {
+                double acc = 0.0;
+                for (int k = 0; k < nc; ++k) acc += c[k + r * nc] * c[k + cc * nc];
+                pr.ctc[r + cc * xn] = acc;
+            }
     }
     /* AB is fixed during a solve: its nonzero lists serve every factorisation and pass. */
-    int *idx = (int *)wp, *cnt = idx;
-    for (int j = 0; j < n; ++j) cnt += (size_t)nx[j + 1] * (nx[j] + nu[j]);
+    int *idx = (int *)wp, *cnt = idx + oab[n];
     nonzeros(n, nx, nu, ab, idx, cnt);
     pr.idx = idx;
     pr.cnt = cnt;

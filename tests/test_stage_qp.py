@@ -152,6 +152,26 @@ def test_reusing_the_factors_of_unchanged_stages_changes_nothing_but_the_work(se
     assert reused.stages < full.stages
 
 
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("nx,nu,nc,sizes", [(*d, (d[0][1], d[1][1])) for d in DIMS]
+                         + [([4] + [5] * 3 + [6] * 4, [3] * 7, 2, (6, 3))])
+def test_kernels_for_fixed_sizes_give_the_generic_kernels_numbers(nx, nu, nc, sizes, seed):
+    """The stage kernels compiled for the sizes of most stages do the same operations in the
+    same order as the generic ones: the same iterates, bit for bit. The last structure mixes
+    stages of both kinds (x_0, stages of another size, the change of size)."""
+    data, _ = _random_qp(np.random.default_rng(seed), nx, nu, nc)
+    runs = {}
+    for specialise in (True, False):
+        qp = StageQP(nx, nu, nc, max_outer=500, specialise=specialise)
+        runs[specialise] = qp, qp.solve(**data)
+    (fixed_qp, fixed), (generic_qp, generic) = runs[True], runs[False]
+    assert fixed_qp.specialised_for == sizes and generic_qp.specialised_for is None
+    assert fixed.success and generic.success and generic.outer > 1
+    np.testing.assert_array_equal(fixed.z, generic.z)
+    assert (fixed.outer, fixed.changes, fixed.passes, fixed.stages) == (
+        generic.outer, generic.changes, generic.passes, generic.stages)
+
+
 def test_seeding_with_a_solution_needs_one_factorisation():
     nx, nu, nc = DIMS[0]
     data, (big_h, a_eq, rhs) = _random_qp(np.random.default_rng(5), nx, nu, nc)
@@ -190,6 +210,8 @@ def test_bad_dimensions_are_rejected():
         StageQP([3, 3, 3], [2, 2], 1, max_outer=0)
     with pytest.raises(ValueError, match="reuse_factors must be True or False"):
         StageQP([3, 3, 3], [2, 2], 1, reuse_factors=1)
+    with pytest.raises(ValueError, match="specialise must be True or False"):
+        StageQP([3, 3, 3], [2, 2], 1, specialise="yes")
     qp = StageQP([3, 3, 3], [2, 2], 1)
     with pytest.raises(ValueError, match="h must be a contiguous float64 array of 59"):
         qp.solve(*(np.zeros(4),) * 8)
