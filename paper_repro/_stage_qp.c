@@ -175,13 +175,13 @@ KERNEL int factor_stage(const int x, const int u, const int x1, const double *re
                         const signed char *restrict act, double rho,
                         const double *restrict a, const int *restrict ix,
                         const int *restrict cn, const double *restrict p1,
-                        double *restrict m, double *restrict p) {
+                        double *restrict m, double *restrict p, double *restrict t,
+                        double *restrict tt, double *restrict acc, double *restrict kt,
+                        double *restrict col) {
     const int s = x + u;
     /* tt = (P_{j+1} AB)', column k being row k of P AB: the next product then takes whole
      * contiguous rows of it. Each column of P AB sums over the nonzeros of AB's column. */
-    double tt[s * x1];
     for (int cc = 0; cc < s; ++cc) {
-        double t[x1];
         UNROLL for (int r = 0; r < x1; ++r) t[r] = 0.0;
         const double *acol = a + (size_t)cc * x1;
         const int *ic = ix + (size_t)cc * x1;
@@ -198,7 +198,6 @@ KERNEL int factor_stage(const int x, const int u, const int x1, const double *re
      * dot product would be, but along c, which vectorises. Entries c <= r are kept (upper
      * triangle), the rest mirrored from them, so M is exactly symmetric. */
     for (int r = 0; r < s; ++r) {
-        double acc[s];
         UNROLL for (int c = 0; c < s; ++c) acc[c] = 0.0;
         const double *ar = a + (size_t)r * x1;
         const int *ir = ix + (size_t)r * x1;
@@ -221,7 +220,7 @@ KERNEL int factor_stage(const int x, const int u, const int x1, const double *re
     if (u > 0) {
         double *l = m + x + (size_t)x * s;
         if (chol(l, u, s)) return 3;
-        double kt[u * x];  /* a private copy: no aliasing with l, so the loops vectorise */
+        /* kt: a private copy, which does not alias l, so the loops vectorise */
         for (int i = 0; i < u; ++i)
             for (int r = 0; r < x; ++r) kt[r + i * x] = m[r + (size_t)(x + i) * s];
         for (int k = 0; k < u; ++k) {
@@ -249,13 +248,12 @@ KERNEL int factor_stage(const int x, const int u, const int x1, const double *re
     }
     /* P_j = M_xx + K' M_ux, column by column (along r, which vectorises); then the mean of
      * it and its transpose, exactly symmetric. */
-    const double *kt = m + (size_t)x * s;
+    const double *ktm = m + (size_t)x * s;
     for (int cc = 0; cc < x; ++cc) {
-        double col[x];
         UNROLL for (int r = 0; r < x; ++r) col[r] = m[r + (size_t)cc * s];
         for (int i = 0; i < u; ++i) {
             double v = m[x + i + (size_t)cc * s];
-            const double *ki = kt + (size_t)i * s;
+            const double *ki = ktm + (size_t)i * s;
             UNROLL for (int r = 0; r < x; ++r) col[r] = FMA(ki[r], v, col[r]);
         }
         UNROLL for (int r = 0; r < x; ++r) p[r + cc * x] = col[r];
@@ -274,10 +272,10 @@ KERNEL void back_stage(const int x, const int u, const int x1, const double *res
                        const int *restrict ix, const int *restrict cn,
                        const double *restrict bj, const double *restrict gj,
                        const double *restrict p1, const double *restrict m,
-                       double *restrict pv, double *restrict mv) {
+                       double *restrict pv, double *restrict mv, double *restrict w,
+                       double *restrict mu, double *restrict pj) {
     const int s = x + u;
     /* w = P_{j+1} b_j + p_{j+1} */
-    double w[x1];
     UNROLL for (int r = 0; r < x1; ++r) w[r] = pv[r];
     for (int k = 0; k < x1; ++k) {
         double v = bj[k];
@@ -293,10 +291,8 @@ KERNEL void back_stage(const int x, const int u, const int x1, const double *res
         mv[r] = acc;
     }
     /* p_j = m_x + K' m_u (along x); k_j = -M_uu^{-1} m_u (kept in mv's u slots) */
-    double mu[u > 0 ? u : 1];
     for (int i = 0; i < u; ++i) mu[i] = mv[x + i];
     const double *kt = m + (size_t)x * s;
-    double pj[x];
     UNROLL for (int r = 0; r < x; ++r) pj[r] = mv[r];
     for (int i = 0; i < u; ++i)
         UNROLL for (int r = 0; r < x; ++r) pj[r] = FMA(kt[r + (size_t)i * s], mu[i], pj[r]);
@@ -310,16 +306,14 @@ KERNEL void back_stage(const int x, const int u, const int x1, const double *res
 /* Forward pass of stage j: u_j = K_j x_j + k_j, then x_{j+1} = AB_j z_j + b_j into zj + s. */
 KERNEL void fwd_stage(const int x, const int u, const int x1, const double *restrict a,
                       const double *restrict bj, const double *restrict m,
-                      double *restrict zj) {
+                      double *restrict zj, double *restrict acc, double *restrict zn) {
     const int s = x + u;
     const double *kt = m + (size_t)x * s;
     /* the u sums side by side (each in its own order), not one after the other */
-    double acc[u > 0 ? u : 1];
     UNROLL for (int i = 0; i < u; ++i) acc[i] = zj[x + i];  /* k_j */
     for (int r = 0; r < x; ++r)
         UNROLL for (int i = 0; i < u; ++i) acc[i] = FMA(kt[r + (size_t)i * s], zj[r], acc[i]);
     UNROLL for (int i = 0; i < u; ++i) zj[x + i] = acc[i];
-    double zn[x1];
     UNROLL for (int r = 0; r < x1; ++r) zn[r] = bj[r];
     for (int cc = 0; cc < s; ++cc) {
         double v = zj[cc];
@@ -331,26 +325,32 @@ KERNEL void fwd_stage(const int x, const int u, const int x1, const double *rest
 }
 
 /* The generic instances, and (with SQP_NX, SQP_NU) the fixed-size ones. */
-#define INSTANCES(name, X, U, X1)                                                            \
-    static TUNED int factor_##name(                                     \
-        int x, int u, int x1, const double *h, const signed char *act, double rho,           \
-        const double *a, const int *ix, const int *cn, const double *p1, double *m,          \
-        double *p) {                                                                        \
-        (void)x; (void)u; (void)x1;                                                         \
-        return factor_stage(X, U, X1, h, act, rho, a, ix, cn, p1, m, p);                     \
-    }                                                                                       \
-    static TUNED void back_##name(                                      \
-        int x, int u, int x1, const double *a, const int *ix, const int *cn,                 \
-        const double *bj, const double *gj, const double *p1, const double *m, double *pv,   \
-        double *mv) {                                                                       \
-        (void)x; (void)u; (void)x1;                                                         \
-        back_stage(X, U, X1, a, ix, cn, bj, gj, p1, m, pv, mv);                              \
-    }                                                                                       \
-    static TUNED void fwd_##name(                                       \
-        int x, int u, int x1, const double *a, const double *bj, const double *m,           \
-        double *zj) {                                                                       \
-        (void)x; (void)u; (void)x1;                                                         \
-        fwd_stage(X, U, X1, a, bj, m, zj);                                                   \
+/* The scratch arrays are declared here, where their sizes are constants in the fixed-size
+ * instance: arrays of constant size can live in registers, variable-length ones cannot. */
+#define INSTANCES(name, X, U, X1)                                                           \
+    static TUNED int factor_##name(                                                        \
+        int x, int u, int x1, const double *h, const signed char *act, double rho,          \
+        const double *a, const int *ix, const int *cn, const double *p1, double *m,         \
+        double *p) {                                                                       \
+        (void)x; (void)u; (void)x1;                                                        \
+        double t[X1], tt[(X + U) * X1], acc[X + U], kt[U * X + 1], col[X];                 \
+        return factor_stage(X, U, X1, h, act, rho, a, ix, cn, p1, m, p, t, tt, acc, kt,     \
+                            col);                                                          \
+    }                                                                                      \
+    static TUNED void back_##name(                                                         \
+        int x, int u, int x1, const double *a, const int *ix, const int *cn,                \
+        const double *bj, const double *gj, const double *p1, const double *m, double *pv,  \
+        double *mv) {                                                                      \
+        (void)x; (void)u; (void)x1;                                                        \
+        double w[X1], mu[U + 1], pj[X];                                                    \
+        back_stage(X, U, X1, a, ix, cn, bj, gj, p1, m, pv, mv, w, mu, pj);                  \
+    }                                                                                      \
+    static TUNED void fwd_##name(                                                          \
+        int x, int u, int x1, const double *a, const double *bj, const double *m,          \
+        double *zj) {                                                                      \
+        (void)x; (void)u; (void)x1;                                                        \
+        double acc[U + 1], zn[X1];                                                         \
+        fwd_stage(X, U, X1, a, bj, m, zj, acc, zn);                                         \
     }
 INSTANCES(any, x, u, x1)
 #if defined(SQP_NX) && defined(SQP_NU)
