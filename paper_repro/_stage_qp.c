@@ -38,20 +38,13 @@
 #include <math.h>
 #include <string.h>
 
-/* The stage kernels are inlined into a generic and a fixed-size instance each (TUNED). */
+/* The stage kernels are inlined into a generic and a fixed-size instance each (INSTANCE). */
 #define KERNEL static inline __attribute__((always_inline))
 /* Loops over a stage's rows, fully unrolled where the size is a constant: the compiler then
  * keeps the accumulators in registers, not in memory (a store and a reload in every step of
- * a chain of multiply-adds); 1.5x on the crossing's QPs. */
+ * a chain of multiply-adds); 1.3x on the crossing's QPs. */
 #define UNROLL _Pragma("GCC unroll 32")
-/* 256-bit vectors for the stage kernels, also where 512-bit ones exist: rows of 18 leave
- * masked remainders, for which gcc 12 resorts to gathers. Measured on an AVX-512 EPYC:
- * 0.18 s for the crossing's 376 hard QPs against 0.22 s with 512 bits. */
-#if defined(__GNUC__) && !defined(__clang__) && (defined(__x86_64__) || defined(__i386__))
-#define TUNED __attribute__((noinline, target("prefer-vector-width=256")))
-#else
-#define TUNED __attribute__((noinline))
-#endif
+#define INSTANCE static __attribute__((noinline))
 
 /* Multiply-adds are fused explicitly. Left to itself the compiler fuses a*b + c in some
  * loops and not in others (not in sums it vectorises in order, nor in some masked vector
@@ -118,10 +111,12 @@ size_t stage_qp_workspace(int n, const int *nx, const int *nu, int nc) {
         nw += s;
         mx = nx[j] > mx ? nx[j] : mx;
     }
-    /* g, pv, target, z0, lam0, dlam; C'C; lamc0, dlamc; the nonzero lists of the AB
-     * columns (ints: one row index per entry of AB_j, one count per column), in doubles;
-     * the active set of the current factors (chars) */
-    return w + 6 * nw + (size_t)nx[n] * nx[n] + 2 * (size_t)nc
+    /* g, pv, target, z0, lam0, dlam; C'C; lamc0, dlamc; AB' (as many entries as AB); the
+     * nonzero lists of the AB columns (ints: one row index per entry of AB_j, one count per
+     * column), in doubles; the active set of the current factors (chars) */
+    size_t nab = 0;
+    for (int j = 0; j < n; ++j) nab += (size_t)nx[j + 1] * (nx[j] + nu[j]);
+    return w + 6 * nw + (size_t)nx[n] * nx[n] + 2 * (size_t)nc + nab
            + (nz_ints(n, nx, nu) + 1) / 2 + (nw + sizeof(double) - 1) / sizeof(double);
 }
 
@@ -135,17 +130,21 @@ static size_t nz_ints(int n, const int *nx, const int *nu) {
 /* The rows of the nonzero entries of every column of AB_j (idx, x1 slots per column) and
  * their number (cnt). About two thirds of AB is structurally zero here (the carried
  * equilibrium and barrier states), and the products below run over the nonzeros only, in
- * the same order as a dense loop: skipped terms are exact zeros, so results are unchanged. */
+ * the same order as a dense loop: skipped terms are exact zeros, so results are unchanged.
+ * Also AB_j' (abt, s x x1), for the vector passes. */
 static void nonzeros(int n, const int *nx, const int *nu, const double *ab, int *idx,
-                     int *cnt) {
+                     int *cnt, double *abt) {
     for (int j = 0; j < n; ++j) {
         int s = nx[j] + nu[j], x1 = nx[j + 1];
         for (int cc = 0; cc < s; ++cc, ab += x1, idx += x1) {
             int m = 0;
-            for (int k = 0; k < x1; ++k)
+            for (int k = 0; k < x1; ++k) {
+                abt[cc + k * s] = ab[k];
                 if (ab[k] != 0.0) idx[m++] = k;
+            }
             *cnt++ = m;
         }
+        abt += (size_t)s * x1;
     }
 }
 
@@ -155,6 +154,7 @@ typedef struct {
     const double *h, *q, *ab, *b, *c, *d;
     double rho, eq_tol;
     double **P, **M, *g, *pv, *ctc;  /* ctc: C'C */
+    double *abt;                     /* AB_j' */
     double *dlam, *dlamc;  /* last multiplier update: the dual direction when inconsistent */
     signed char *fact_act; /* the active set of the current factors, */
     int fact_valid;        /* if any (not at the start of a call, nor after a failed one) */
@@ -207,11 +207,13 @@ KERNEL int factor_stage(const int x, const int u, const int x1, const double *re
             const double *tk = tt + k * s;
             UNROLL for (int c = 0; c < s; ++c) acc[c] = FMA(tk[c], v, acc[c]);
         }
+        /* the whole column, of constant length (acc stays in registers); the entries below
+         * the diagonal are overwritten by the mirror */
         const double *hr = h + (size_t)r * s;
         double *mr = m + (size_t)r * s;
-        for (int c = 0; c <= r; ++c) mr[c] = hr[c];
+        UNROLL for (int c = 0; c < s; ++c) mr[c] = hr[c];
         if (act[r]) mr[r] += rho;
-        for (int c = 0; c <= r; ++c) mr[c] += acc[c];
+        UNROLL for (int c = 0; c < s; ++c) mr[c] += acc[c];
     }
     for (int cc = 0; cc < s; ++cc)
         for (int r = cc + 1; r < s; ++r) m[r + cc * s] = m[cc + r * s];
@@ -268,12 +270,11 @@ KERNEL int factor_stage(const int x, const int u, const int x1, const double *re
 
 /* Backward pass of stage j: pv holds p_{j+1} on entry, p_j on return; mv (stage j's slots
  * of z) gets m_j's x part and k_j = -M_uu^{-1} m_u. */
-KERNEL void back_stage(const int x, const int u, const int x1, const double *restrict a,
-                       const int *restrict ix, const int *restrict cn,
+KERNEL void back_stage(const int x, const int u, const int x1, const double *restrict abt,
                        const double *restrict bj, const double *restrict gj,
                        const double *restrict p1, const double *restrict m,
                        double *restrict pv, double *restrict mv, double *restrict w,
-                       double *restrict mu, double *restrict pj) {
+                       double *restrict mu, double *restrict pj, double *restrict ml) {
     const int s = x + u;
     /* w = P_{j+1} b_j + p_{j+1} */
     UNROLL for (int r = 0; r < x1; ++r) w[r] = pv[r];
@@ -282,18 +283,19 @@ KERNEL void back_stage(const int x, const int u, const int x1, const double *res
         if (v == 0.0) continue;
         UNROLL for (int r = 0; r < x1; ++r) w[r] = FMA(p1[r + (size_t)k * x1], v, w[r]);
     }
-    /* m = g_j + AB' w, over the nonzeros of AB */
-    for (int r = 0; r < s; ++r) {
-        double acc = gj[r];
-        const double *ar = a + (size_t)r * x1;
-        const int *ir = ix + (size_t)r * x1;
-        for (int i = 0; i < cn[r]; ++i) acc = FMA(ar[ir[i]], w[ir[i]], acc);
-        mv[r] = acc;
+    /* m = g_j + AB' w, as a sum of the columns of AB' (rows of AB) along s, which
+     * vectorises: per entry the terms and their order are those of the dot product over the
+     * nonzeros of AB's column (a zero term changes nothing). */
+    UNROLL for (int r = 0; r < s; ++r) ml[r] = gj[r];
+    for (int k = 0; k < x1; ++k) {
+        double v = w[k];
+        const double *ak = abt + (size_t)k * s;
+        UNROLL for (int r = 0; r < s; ++r) ml[r] = FMA(ak[r], v, ml[r]);
     }
     /* p_j = m_x + K' m_u (along x); k_j = -M_uu^{-1} m_u (kept in mv's u slots) */
-    for (int i = 0; i < u; ++i) mu[i] = mv[x + i];
+    for (int i = 0; i < u; ++i) mu[i] = ml[x + i];
     const double *kt = m + (size_t)x * s;
-    UNROLL for (int r = 0; r < x; ++r) pj[r] = mv[r];
+    UNROLL for (int r = 0; r < x; ++r) pj[r] = ml[r];
     for (int i = 0; i < u; ++i)
         UNROLL for (int r = 0; r < x; ++r) pj[r] = FMA(kt[r + (size_t)i * s], mu[i], pj[r]);
     UNROLL for (int r = 0; r < x; ++r) pv[r] = pj[r];
@@ -328,7 +330,7 @@ KERNEL void fwd_stage(const int x, const int u, const int x1, const double *rest
 /* The scratch arrays are declared here, where their sizes are constants in the fixed-size
  * instance: arrays of constant size can live in registers, variable-length ones cannot. */
 #define INSTANCES(name, X, U, X1)                                                           \
-    static TUNED int factor_##name(                                                        \
+    INSTANCE int factor_##name(                                                        \
         int x, int u, int x1, const double *h, const signed char *act, double rho,          \
         const double *a, const int *ix, const int *cn, const double *p1, double *m,         \
         double *p) {                                                                       \
@@ -337,15 +339,14 @@ KERNEL void fwd_stage(const int x, const int u, const int x1, const double *rest
         return factor_stage(X, U, X1, h, act, rho, a, ix, cn, p1, m, p, t, tt, acc, kt,     \
                             col);                                                          \
     }                                                                                      \
-    static TUNED void back_##name(                                                         \
-        int x, int u, int x1, const double *a, const int *ix, const int *cn,                \
-        const double *bj, const double *gj, const double *p1, const double *m, double *pv,  \
-        double *mv) {                                                                      \
+    INSTANCE void back_##name(                                                         \
+        int x, int u, int x1, const double *abt, const double *bj, const double *gj,        \
+        const double *p1, const double *m, double *pv, double *mv) {                       \
         (void)x; (void)u; (void)x1;                                                        \
-        double w[X1], mu[U + 1], pj[X];                                                    \
-        back_stage(X, U, X1, a, ix, cn, bj, gj, p1, m, pv, mv, w, mu, pj);                  \
+        double w[X1], mu[U + 1], pj[X], ml[X + U];                                         \
+        back_stage(X, U, X1, abt, bj, gj, p1, m, pv, mv, w, mu, pj, ml);                    \
     }                                                                                      \
-    static TUNED void fwd_##name(                                                          \
+    INSTANCE void fwd_##name(                                                          \
         int x, int u, int x1, const double *a, const double *bj, const double *m,          \
         double *zj) {                                                                      \
         (void)x; (void)u; (void)x1;                                                        \
@@ -404,8 +405,8 @@ static void vector_pass(const problem *pr, const double *g, double *z) {
         int x = nx[j], u = nu[j], x1 = nx[j + 1];
         size_t o = pr->oz[j];
         (IS_FIXED(x, u, x1) ? back_fixed : back_any)(
-            x, u, x1, pr->ab + pr->oab[j], pr->idx + pr->oab[j], pr->cnt + o, pr->b + pr->ob[j],
-            g + o, pr->P[j + 1], pr->M[j], pv, z + o);
+            x, u, x1, pr->abt + pr->oab[j], pr->b + pr->ob[j], g + o, pr->P[j + 1], pr->M[j],
+            pv, z + o);
     }
     /* x_0 = -P_0^{-1} p_0 */
     for (int r = 0; r < nx[0]; ++r) z[r] = -pv[r];
@@ -512,9 +513,10 @@ int stage_qp_solve(int n, const int *nx, const int *nu, const double *h, const d
         oab[j + 1] = oab[j] + (size_t)nx[j + 1] * s;
         ob[j + 1] = ob[j] + nx[j + 1];
     }
-    problem pr = {n, nc, nw, max_passes, nx, nu, NULL, NULL, h, q, ab, b, c, d, rho * hmax,
-                  eq_tol, P, M, NULL, NULL, NULL, NULL, NULL, NULL, 0, reuse,
-                  oz, oh, oab, ob};
+    problem pr = {.n = n, .nc = nc, .nw = nw, .max_passes = max_passes, .nx = nx, .nu = nu,
+                  .h = h, .q = q, .ab = ab, .b = b, .c = c, .d = d, .rho = rho * hmax,
+                  .eq_tol = eq_tol, .P = P, .M = M, .fact_valid = 0, .reuse = reuse,
+                  .oz = oz, .oh = oh, .oab = oab, .ob = ob};
     pr.g = wp; wp += nw;
     pr.pv = wp; wp += nw;
     double *target = wp; wp += nw;
@@ -534,9 +536,11 @@ int stage_qp_solve(int n, const int *nx, const int *nu, const double *h, const d
                 pr.ctc[r + cc * xn] = acc;
             }
     }
-    /* AB is fixed during a solve: its nonzero lists serve every factorisation and pass. */
+    /* AB is fixed during a solve: its nonzero lists and its transpose serve every
+     * factorisation and pass. */
+    pr.abt = wp; wp += oab[n];
     int *idx = (int *)wp, *cnt = idx + oab[n];
-    nonzeros(n, nx, nu, ab, idx, cnt);
+    nonzeros(n, nx, nu, ab, idx, cnt, pr.abt);
     pr.idx = idx;
     pr.cnt = cnt;
     pr.fact_act = (signed char *)(idx + nz_ints(n, nx, nu));
