@@ -176,6 +176,7 @@ KERNEL int factor_stage(const int x, const int u, const int x1, const double *re
                         const double *restrict a, const int *restrict ix,
                         const int *restrict cn, const double *restrict p1,
                         double *restrict m, double *restrict p, double *restrict t,
+                        double *restrict tc,
                         double *restrict tt, double *restrict acc, double *restrict kt,
                         double *restrict col) {
     const int s = x + u;
@@ -191,8 +192,12 @@ KERNEL int factor_stage(const int x, const int u, const int x1, const double *re
             const double *pk = p1 + (size_t)k * x1;
             UNROLL for (int r = 0; r < x1; ++r) t[r] = FMA(pk[r], v, t[r]);
         }
-        UNROLL for (int k = 0; k < x1; ++k) tt[cc + k * s] = t[k];
+        UNROLL for (int r = 0; r < x1; ++r) tc[r + cc * x1] = t[r];
     }
+    /* The transpose as a pass of its own: stored across (stride s) in the loop above, t
+     * would be split into scalars, and its sums done one number at a time. */
+    for (int k = 0; k < x1; ++k)
+        for (int cc = 0; cc < s; ++cc) tt[cc + k * s] = tc[k + cc * x1];
     /* Column r of AB' (P AB) = sum over the nonzeros AB_kr of AB_kr tt[:, k]: element c is
      * the dot product of AB[:, r] with column c of P AB, summed in the same order as the
      * dot product would be, but along c, which vectorises. Entries c <= r are kept (upper
@@ -335,8 +340,9 @@ KERNEL void fwd_stage(const int x, const int u, const int x1, const double *rest
         const double *a, const int *ix, const int *cn, const double *p1, double *m,         \
         double *p) {                                                                       \
         (void)x; (void)u; (void)x1;                                                        \
-        double t[X1], tt[(X + U) * X1], acc[X + U], kt[U * X + 1], col[X];                 \
-        return factor_stage(X, U, X1, h, act, rho, a, ix, cn, p1, m, p, t, tt, acc, kt,     \
+        double t[X1], tc[(X + U) * X1], tt[(X + U) * X1], acc[X + U], kt[U * X + 1],       \
+            col[X];                                                                        \
+        return factor_stage(X, U, X1, h, act, rho, a, ix, cn, p1, m, p, t, tc, tt, acc, kt, \
                             col);                                                          \
     }                                                                                      \
     INSTANCE void back_##name(                                                         \
