@@ -83,9 +83,7 @@ class TrackingNMPC:
         lbw, ubw = self._lbw.copy(), self._ubw.copy()
         lbw[self._ix[0]] = x0
         ubw[self._ix[0]] = x0
-        box = ocp.relaxed_state_box(x0, guess.u)  # None while x0 ∈ 𝒳
-        if box is not None:
-            lbw[self._ix[1:]], ubw[self._ix[1:]] = box
+        lbw[self._ix[1:]], ubw[self._ix[1:]] = ocp.state_box(x0)  # 𝒳, relaxed if x0 ∉ 𝒳
 
         sol = self._solver(x0=w0, p=params, lbx=lbw, ubx=ubw, lbg=0.0, ubg=0.0)
         elapsed = time.perf_counter() - start

@@ -82,7 +82,6 @@ class OCP:
         self._selected = _selected_states(model.output)
         self.equilibria = model.equilibria
         self._equilibrium_fn = None  # numeric a -> (x_a, u_a), built on first use
-        self._rollout = None  # numeric (x0, U) -> x_1..x_N, built on first use
         self.state_bounds = (np.asarray(model.state_lower, float),
                              np.asarray(model.state_upper, float))
         self.input_bounds = (np.asarray(model.input_lower, float),
@@ -158,32 +157,29 @@ class OCP:
             return np.asarray(x, float)[self._selected]
         return np.asarray(self.h(x), float).ravel()
 
-    def relaxed_state_box(self, x0, inputs=None) -> tuple[np.ndarray, np.ndarray] | None:
-        """The box of the plan x_1..x_N when the measured state x0 (n_x,) lies outside 𝒳:
-        (lower, upper), (N, n_x) each; ``None`` while x0 ∈ 𝒳, where the box is 𝒳 at every
-        stage (eq. 7, the paper). Both solvers read it at every sampling instant.
+    def state_box(self, x0) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper), (n_x,) each: the box the plan x_1..x_N must stay in, from the
+        measured state x0 (n_x,). Both solvers read it at every sampling instant.
 
-        A measured state outside 𝒳 (a disturbance; or the plant not following a plan whose
-        step the line search shortened, near a collision) can make hard bounds infeasible
-        from then on: a roll rate of 3.1 rad/s against the bound π/2 asks for 153 rad/s² in
-        one step of 0.01 s where the rotors give at most 110, so every later QP fails and the
-        vehicle tumbles. So 𝒳 is widened, stage by stage, just enough to hold the trajectory
-        x̂_1..x̂_N that ``inputs`` (N, n_u), the guess's (the previous plan's), give from x0:
-        the QP then has a plan within its bounds (x̂ itself), and no more room than the
-        vehicle needs on its way back. (Widening by a fixed margin instead let an escape use
-        the room to dive further below the ground at every instant.) ``inputs=None``: rest
-        inputs. The terminal equality x_N = x_a still ends the plan at rest in λ(𝒳 × 𝒰).
+        While x0 ∈ 𝒳 this is 𝒳 itself (eq. 7, the paper). A measured state outside 𝒳 (a
+        disturbance; or the plant overshooting a plan whose step the line search shortened,
+        which leaves the model's gaps open, near a collision) would make the hard bounds
+        infeasible from then on: a roll rate of 3.1 rad/s against the bound π/2 asks for
+        153 rad/s² in one step of 0.01 s where the rotors give at most 110, so every later
+        QP fails and the vehicle tumbles. A component that x0 violates by e is therefore
+        bounded at 2e beyond its bound instead (room for the one or two steps the state keeps
+        moving outwards while it is braked), on every stage of the plan. The relaxation is
+        recomputed from every measurement, so it shrinks as the state comes back, and the
+        terminal equality x_N = x_a still ends the plan at rest inside λ(𝒳 × 𝒰).
+        Returns the arrays of :attr:`state_bounds` themselves (not copies) when x0 ∈ 𝒳.
         """
         lower, upper = self.state_bounds
         x0 = np.asarray(x0, float)
-        if np.all((lower <= x0) & (x0 <= upper)):
-            return None
-        if inputs is None:
-            inputs = np.tile(self.model.rest(x0)[1], (self.horizon, 1))
-        if self._rollout is None:
-            self._rollout = self.f.mapaccum(self.horizon)
-        path = np.asarray(self._rollout(x0, np.asarray(inputs, float).T), float).T  # (N, n_x)
-        return np.minimum(lower, path), np.maximum(upper, path)
+        below, above = x0 < lower, x0 > upper
+        if not (below.any() or above.any()):
+            return lower, upper
+        return (np.where(below, 2.0 * x0 - lower, lower),
+                np.where(above, 2.0 * x0 - upper, upper))
 
     # The artificial equilibrium: a parametrisation (x_a, u_a) = E(a), read by both solvers.
 

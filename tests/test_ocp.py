@@ -220,34 +220,27 @@ def test_the_quadrotor_equilibrium_box_is_the_relaxed_box_at_position_and_yaw():
     assert np.all(u_a == ocp.config.quadrotor.hover_thrust)
 
 
-def test_the_relaxed_state_box_holds_the_guess_from_a_state_outside_x_and_no_more():
+def test_the_state_box_is_x_inside_and_holds_a_measured_state_outside_with_room():
     ocp = OCP(_config())
     lo, hi = ocp.state_bounds
-    n = ocp.horizon
-    x0, u_rest = equilibrium([1.0, 2.0, 3.0])
-    assert ocp.relaxed_state_box(x0) is None  # inside 𝒳: 𝒳 itself
-    x0[9] = 3.1                               # roll rate above π/2
-    inputs = np.tile(u_rest, (n, 1))
-    inputs[:, 1] += 0.5                       # a guess that keeps rolling
-    low, up = ocp.relaxed_state_box(x0, inputs)
-    assert low.shape == up.shape == (n, ocp.nx)
-    # x̂: the guess's inputs flown from x0 by the prediction model.
-    path, x = [], x0
-    for u in inputs:
-        x = np.asarray(ocp.f(x, u), float).ravel()
-        path.append(x)
-    path = np.array(path)
-    assert np.all(low <= path) and np.all(path <= up)
-    # Exactly as wide as x̂ needs: 𝒳 where x̂ is inside, x̂ itself where it is not.
-    np.testing.assert_array_equal(low, np.minimum(lo, path))
-    np.testing.assert_array_equal(up, np.maximum(hi, path))
-    assert up[0, 9] > np.pi / 2 and np.any(up[:, 3] > np.pi / 6)  # the roll follows the rate
-    # Rest inputs by default; the QP's bounds on x_1..x_N are the box.
+    x0, _ = equilibrium([1.0, 2.0, 3.0])
+    assert all(a is b for a, b in zip(ocp.state_box(x0), ocp.state_bounds))
+    x0[9], x0[3] = 3.1, -0.7  # roll rate above π/2, roll below −π/6
+    low, up = ocp.state_box(x0)
+    # Only the violated sides move, each to twice the excess beyond its bound.
+    assert up[9] == pytest.approx(hi[9] + 2 * (3.1 - hi[9]))
+    assert low[3] == pytest.approx(lo[3] - 2 * (lo[3] + 0.7))
+    keep = np.ones(ocp.nx, bool)
+    keep[[3, 9]] = False
+    np.testing.assert_array_equal(low[keep], lo[keep])
+    np.testing.assert_array_equal(up[keep], hi[keep])
+    assert low[9] == lo[9] and up[3] == hi[3]
+    assert np.all(low < x0) and np.all(x0 < up)  # strictly inside: room to move outwards
+    # Both solvers' bounds on x_1..x_N come from it.
     layout = QPLayout.of(ocp)
-    box = ocp.relaxed_state_box(x0)
-    lb, ub = layout.bounds(ocp, box)
-    np.testing.assert_array_equal(lb[layout.ix], box[0])
-    np.testing.assert_array_equal(ub[layout.ix], box[1])
+    lb, ub = layout.bounds(ocp, x0)
+    np.testing.assert_array_equal(lb[layout.ix], np.tile(low, (ocp.horizon, 1)))
+    np.testing.assert_array_equal(ub[layout.ix], np.tile(up, (ocp.horizon, 1)))
 
 
 _X = ca.SX.sym("x", 2)

@@ -178,7 +178,7 @@ def test_qp_failure_is_reported_not_raised(scene):
     reports it and the closed loop would fall back on the shifted plan."""
     fast = RealTimeNMPC(_config())
     x0, _ = equilibrium([-18.0, 0.0, 2.0])
-    # Pitch rate 40 rad/s: even in the relaxed box (OCP.relaxed_state_box) the rotors' 110 rad/s²
+    # Pitch rate 40 rad/s: even in the relaxed box (OCP.state_box) the rotors' 110 rad/s²
     # cannot bring it to rest (x_N = x_a) within the horizon's 0.35 s.
     x0[10] = 40.0
     sol = fast.solve(x0, scene.targets[0], ())
@@ -197,7 +197,7 @@ def test_a_state_outside_x_is_flown_back_into_it_where_hard_bounds_had_no_plan(s
     x0[9] = 3.1
     target = scene.targets[0]
     hard = RealTimeNMPC(_config())
-    hard.ocp.relaxed_state_box = lambda x, u=None: None  # 𝒳 as hard bounds
+    hard.ocp.state_box = lambda x: hard.ocp.state_bounds  # no relaxation
     assert hard.solve(x0, target, ()).status == "qp_failed"
 
     plant = Plant(ocp.config.quadrotor, ts=ocp.config.nmpc.ts)
@@ -214,7 +214,7 @@ def test_a_state_outside_x_is_flown_back_into_it_where_hard_bounds_had_no_plan(s
 
 
 def test_both_solvers_find_the_same_plan_in_the_relaxed_box(reference, scene):
-    """From a state outside 𝒳 both solvers read the same relaxed box (OCP.relaxed_state_box): the
+    """From a state outside 𝒳 both solvers read the same relaxed box (OCP.state_box): the
     converged SQP and IPOPT reach the same optimum, and the plan keeps to that box."""
     fast = RealTimeNMPC(_config(), max_iter=40, step_tol=1e-10)
     x0, _ = equilibrium([-18.0, 0.0, 2.0])
@@ -224,8 +224,8 @@ def test_both_solvers_find_the_same_plan_in_the_relaxed_box(reference, scene):
     assert ref.success and sol.success and sol.status == "converged"
     np.testing.assert_allclose(sol.x, ref.x, atol=1e-4)
     np.testing.assert_allclose(sol.u, ref.u, atol=1e-3)
-    low, up = fast.ocp.relaxed_state_box(x0)  # from rest inputs, the guess of both here
-    assert np.all(up[:, 9] > np.pi / 2)  # relaxed
+    low, up = fast.ocp.state_box(x0)
+    assert up[9] > np.pi / 2  # relaxed
     for plan in (sol, ref):
         assert np.all(plan.x[1:] >= low - 1e-7) and np.all(plan.x[1:] <= up + 1e-7)
 
