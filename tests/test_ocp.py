@@ -236,6 +236,13 @@ def test_the_state_box_is_x_inside_and_holds_a_measured_state_outside_with_room(
     np.testing.assert_array_equal(up[keep], hi[keep])
     assert low[9] == lo[9] and up[3] == hi[3]
     assert np.all(low < x0) and np.all(x0 < up)  # strictly inside: room to move outwards
+    # Positions stay hard (the ground, the walls): relaxing them let the room compound.
+    sunk = x0.copy()
+    sunk[2] = -0.01
+    low2, up2 = ocp.state_box(sunk)
+    assert low2[2] == lo[2] == 0.0 and up2[9] == up[9]
+    sunk[[3, 9]] = 0.0
+    assert all(a is b for a, b in zip(ocp.state_box(sunk), ocp.state_bounds))
     # Both solvers' bounds on x_1..x_N come from it.
     layout = QPLayout.of(ocp)
     lb, ub = layout.bounds(ocp, x0)
