@@ -187,8 +187,8 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
     * solve times (median, p95, p99, max), ``failed_solves``, ``dropped_points`` (non-finite
       scan points) and ``fault_steps`` (steps without a usable state or solve).
     * ``steps_outside_state_box``: steps whose state lies outside the box 𝒳 of
-      ``config.nmpc`` (where :meth:`~paper_repro.ocp.OCP.state_box` relaxes the bounds); NaN
-      for a vehicle with another state.
+      ``config.nmpc`` (where :meth:`~paper_repro.ocp.OCP.state_box` relaxes the bounds of
+      the non-position entries); NaN for a vehicle with another state.
     * the set-up's hazards (``meta["hazards"]``, :func:`paper_repro.safety.setup_hazards`):
       ``start_unsafe``, ``target_unsafe``, ``target_unreachable``.
     * thrust steps at changes of the visible set (:func:`scan_change_steps`): ``scan_changes``,

@@ -142,9 +142,9 @@ class RealTimeNMPC:
         X = np.array(guess.x, dtype=float)  # (N+1, n_x)
         X[0] = x0
         lbw, ubw = self._lbw, self._ubw
-        lower, upper = ocp.state_box(x0)
-        if lower is not ocp.state_bounds[0] or upper is not ocp.state_bounds[1]:
-            lbw, ubw = layout.bounds(ocp, x0)  # x0 ∉ 𝒳: the relaxed box (rare)
+        box = ocp.state_box(x0)
+        if box[0] is not ocp.state_bounds[0] or box[1] is not ocp.state_bounds[1]:
+            lbw, ubw = layout.bounds(ocp, box)  # x0 violates 𝒳: the relaxed box (rare)
         U = np.array(guess.u, dtype=float)
         a = ocp.parameters_of(guess.x_a, guess.u_a)
 
@@ -489,13 +489,14 @@ class QPLayout:
         nc = ocp.nx + ocp.equilibrium_rows(a).shape[0]
         return cls(ocp.horizon, ocp.nx, ocp.nu, ocp.na, ocp.scan.slots, nc)
 
-    def bounds(self, ocp: OCP, x0=None) -> tuple[np.ndarray, np.ndarray]:
-        """(lower, upper) of w: 𝒳 on x_1..x_N (:meth:`OCP.state_box` of the measured state
-        ``x0`` when given: relaxed where x0 ∉ 𝒳), 𝒰 on u, the equilibrium box on a_0 (the
-        other a_j equal it), nothing on the carried β. Also sets :attr:`bounded`, the indices
-        of the bounded entries (x, u and a_0: the steps that matter)."""
+    def bounds(self, ocp: OCP, state_box=None) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) of w: 𝒳 on x_1..x_N (or ``state_box``, the (lower, upper) that
+        :meth:`OCP.state_box` gives for a measured state outside 𝒳), 𝒰 on u, the equilibrium
+        box on a_0 (the other a_j equal it), nothing on the carried β. Also sets
+        :attr:`bounded`, the indices of the bounded entries (x, u and a_0: the steps that
+        matter)."""
         lb, ub = np.full(self.nw, -np.inf), np.full(self.nw, np.inf)
-        lb[self.ix], ub[self.ix] = (ocp.state_bounds if x0 is None else ocp.state_box(x0))
+        lb[self.ix], ub[self.ix] = ocp.state_bounds if state_box is None else state_box
         lb[self.iu], ub[self.iu] = ocp.input_bounds
         lb[self.ia[0]], ub[self.ia[0]] = ocp.equilibrium_box
         self.bounded = np.flatnonzero(np.isfinite(lb))

@@ -245,7 +245,7 @@ def test_the_state_box_is_x_inside_and_holds_a_measured_state_outside_with_room(
     assert all(a is b for a, b in zip(ocp.state_box(sunk), ocp.state_bounds))
     # Both solvers' bounds on x_1..x_N come from it.
     layout = QPLayout.of(ocp)
-    lb, ub = layout.bounds(ocp, x0)
+    lb, ub = layout.bounds(ocp, ocp.state_box(x0))
     np.testing.assert_array_equal(lb[layout.ix], np.tile(low, (ocp.horizon, 1)))
     np.testing.assert_array_equal(ub[layout.ix], np.tile(up, (ocp.horizon, 1)))
 
