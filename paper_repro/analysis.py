@@ -87,8 +87,7 @@ def paired(table: pd.DataFrame, a: str = "smooth", b: str = "euclidean",
 
 def by_setting(table: pd.DataFrame, settings=("metric", "eta", "sigma"),
                columns=("tv_u_rate_N_per_s", "hf_energy_fraction", "max_abs_du_N",
-                        "min_clearance_m", "time_to_complete_s", "solve_median_ms",
-                        "solve_p99_ms"),
+                        "min_clearance_m", "time_to_complete_s"),
                n_resamples: int = 2000, confidence: float = 0.95, seed: int = 0
                ) -> pd.DataFrame:
     """Per setting (e.g. each (η, σ) of a sweep): the median of each column over scenes with a

@@ -62,6 +62,10 @@ def _main(argv: list[str] | None) -> int:
     run.add_argument("--qp-solver", choices=("riccati", "hpipm"), default="riccati",
                      help="QP solver of rti: riccati (warm-started active set, default) or "
                           "hpipm (interior point)")
+    run.add_argument("--line-search", action="store_true",
+                     help="rti: the damped real-time iteration (merit line search and "
+                          "Levenberg-Marquardt damping; smoother than the paper's controller "
+                          "with the Euclidean metric)")
     run.add_argument("--max-steps", type=_reproduce.positive_int, default=None,
                      help="limit on closed-loop steps (default: the config's max_steps)")
     run.add_argument("--out", required=True, help="directory for result.npz and config.json")
@@ -94,6 +98,20 @@ def _main(argv: list[str] | None) -> int:
                      "held-out comparison + figures", description=_tuning.__doc__.split("\n\n")[0])
     _tuning.add_arguments(tune)
 
+    from . import evidence as _evidence
+
+    golden = sub.add_parser(
+        "golden", help="fly the golden flights and compare them with figures/golden/ "
+                       "(--write: commit the flights that moved)",
+        description=_evidence.__doc__.split("\n\n")[0])
+    _evidence.add_arguments(golden)
+
+    from . import report as _report
+
+    readme = sub.add_parser("readme", help="write the README's tables from the committed "
+                                           "tables in figures/ (--check: only compare)")
+    _report.add_arguments(readme)
+
     args = parser.parse_args(argv)
     # Every option is checked here, before a scene, a controller or a flight is built.
     if getattr(args, "preset", None) is not None:
@@ -110,6 +128,10 @@ def _main(argv: list[str] | None) -> int:
         return _study.main(args)
     if args.command == "tune":
         return _tuning.main(args)
+    if args.command == "golden":
+        return _evidence.main(args)
+    if args.command == "readme":
+        return _report.main(args)
     if args.command == "run":
         return _run(args)
     return _scene(args)
@@ -123,7 +145,8 @@ def _run(args) -> int:
     cfg = dataclasses.replace(
         cfg,
         distance=dataclasses.replace(cfg.distance, metric=args.metric),
-        nmpc=dataclasses.replace(cfg.nmpc, solver=args.solver, qp_solver=args.qp_solver),
+        nmpc=dataclasses.replace(cfg.nmpc, solver=args.solver, qp_solver=args.qp_solver,
+                                 line_search=args.line_search),
         simulation=dataclasses.replace(
             cfg.simulation, scenario=args.scenario, kind=args.kind,
             seed=cfg.simulation.seed if args.seed is None else args.seed),

@@ -167,6 +167,14 @@ class NMPCParams:
         ``"reference"`` (IPOPT with the exact Hessian, :mod:`paper_repro.nmpc`, as the paper).
     sqp_iterations : SQP iterations per sampling instant of the ``rti`` solver (1 is the
         real-time iteration).
+    line_search : *chosen* ``False``: the ``rti`` solver takes every full Gauss-Newton step,
+        the textbook real-time iteration. ``True`` is the *damped RTI*
+        (:class:`~paper_repro.rti.MeritLineSearch`): steps are shortened on the ℓ1 merit
+        function and the next instants' QPs get a Levenberg–Marquardt term. It is smoother
+        than the paper's controller, not a faster way to the same one: with the Euclidean
+        metric it removes most of the chattering the paper reports (Fig. 8), so it is not the
+        default. It is the remedy where a region moves at the vehicle, where full steps fall
+        into a period-2 oscillation that IPOPT does not show (``benchmarks/fidelity.py``).
     qp_solver : QP solver of the ``rti`` solver: ``"riccati"`` (default, a Riccati recursion
         warm-started with the previous active set, :mod:`paper_repro.stage_qp`, HPIPM as its
         fallback) or ``"hpipm"`` (HPIPM's interior-point method for every QP).
@@ -194,6 +202,7 @@ class NMPCParams:
     lam: float = 0.99
     solver: str = "rti"
     sqp_iterations: int = 1
+    line_search: bool = False
     qp_solver: str = "riccati"
     region_slots: int = 2
     points_per_region: int = 120
@@ -222,6 +231,8 @@ class NMPCParams:
             raise ValueError(f"lam must lie in (0, 1), got {self.lam!r}")
         _require_choice("solver", self.solver, ("rti", "reference"))
         _require_choice("qp_solver", self.qp_solver, ("riccati", "hpipm"))
+        if not isinstance(self.line_search, bool):
+            raise ValueError(f"line_search must be True or False, got {self.line_search!r}")
         for name in ("region_slots", "points_per_region", "sqp_iterations"):
             _require_int(name, getattr(self, name), 1)
 

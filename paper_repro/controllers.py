@@ -17,7 +17,8 @@ from .vehicle import VehicleModel
 def make_controller(config: Config | None = None, model: VehicleModel | None = None,
                     **options) -> Controller:
     """The controller named by ``config.nmpc.solver``: ``"rti"`` (:class:`RealTimeNMPC`, with
-    ``nmpc.sqp_iterations`` and ``nmpc.qp_solver``) or ``"reference"`` (:class:`TrackingNMPC`).
+    ``nmpc.sqp_iterations``, ``nmpc.line_search`` and ``nmpc.qp_solver``) or ``"reference"``
+    (:class:`TrackingNMPC`).
 
     ``model`` : the vehicle (the quadrotor by default). ``options`` go to the controller's
     constructor (e.g. ``max_iter`` for IPOPT, ``capacities`` for the real-time solver).
@@ -27,4 +28,5 @@ def make_controller(config: Config | None = None, model: VehicleModel | None = N
         return TrackingNMPC(config, model, **options)
     options.setdefault("max_iter", config.nmpc.sqp_iterations)
     options.setdefault("qp_solver", config.nmpc.qp_solver)
+    options.setdefault("line_search", config.nmpc.line_search)
     return RealTimeNMPC(config, model, **options)

@@ -23,6 +23,12 @@ from __future__ import annotations
 
 import numpy as np
 
+TIMING_COLUMNS = ("solve_mean_ms", "solve_median_ms", "solve_p95_ms", "solve_p99_ms",
+                  "solve_max_ms", "wall_time_s", "steps_per_s")
+"""Columns of :func:`summary_row` that the machine and its load determine, not the flight:
+tables keep them apart (:func:`split_timings`), so that what a flight determines is
+byte-stable."""
+
 DEFAULT_CUTOFF_HZ = 5.0
 """Cut-off between planned motion and chattering, Hz (see the module docstring)."""
 
@@ -258,6 +264,13 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
         "wall_time_s": wall,
         "steps_per_s": result.steps / wall if wall > 0 else float("nan"),
     }
+
+
+def split_timings(table, columns=TIMING_COLUMNS):
+    """``(flight, timings)``: ``table`` without ``columns``, and those columns alone (with
+    the table's index)."""
+    timing = [c for c in columns if c in table.columns]
+    return table.drop(columns=timing), table[timing]
 
 
 def _median(values) -> float:

@@ -35,15 +35,25 @@ class TrackingNMPC:
     model : the vehicle, the quadrotor by default (see :class:`~paper_repro.ocp.OCP`).
     max_iter : IPOPT iteration limit per solve.
     tol : IPOPT convergence tolerance.
+    apply_unconverged : count a solve that stops at ``max_iter`` as a success, so that the
+        closed loop applies IPOPT's last iterate (what a loop that does not read the solver's
+        status does). ``False`` (default): it is a failed solve, and the loop applies the
+        previous plan, shifted. It matters for the Euclidean metric only: its ½·min d² is not
+        differentiable where the nearest point changes, and IPOPT stops at the iteration
+        limit at most instants with a region in view (``benchmarks/fidelity.py``).
     """
 
     def __init__(self, config: Config | None = None, model: VehicleModel | None = None,
-                 max_iter: int = 200, tol: float = 1e-8):
+                 max_iter: int = 200, tol: float = 1e-8, apply_unconverged: bool = False):
         # Builds the NLP and IPOPT instance once: several seconds.
         if not (isinstance(max_iter, int) and max_iter >= 1):
             raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
         if not (tol > 0):
             raise ValueError(f"tol must be > 0, got {tol!r}")
+        if not isinstance(apply_unconverged, bool):
+            raise ValueError(f"apply_unconverged must be True or False, got "
+                             f"{apply_unconverged!r}")
+        self.apply_unconverged = apply_unconverged
         self.ocp = OCP(config, model)
         self.config = self.ocp.config
         self.horizon = self.ocp.horizon
@@ -92,7 +102,8 @@ class TrackingNMPC:
         x, u, a = self._unpack(w)
         x_a, u_a = self.ocp.equilibrium_of(a)
         status = str(stats.get("return_status", "unknown"))
-        success = bool(stats.get("success", False)) or status in _SUCCESS_STATUSES
+        success = bool(stats.get("success", False)) or status in _SUCCESS_STATUSES or (
+            self.apply_unconverged and status == "Maximum_Iterations_Exceeded")
         success = success and bool(np.all(np.isfinite(w)))
         return NMPCSolution(u, x, x_a, u_a, success, status, int(stats.get("iter_count", -1)),
                             elapsed, float(sol["f"]))

@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
 import sys
 import time
 from dataclasses import dataclass, field
@@ -91,18 +92,14 @@ NOTEBOOKS = (
                  _figure("fig06_euclidean_states", "fig07_euclidean_tracking_errors",
                          "fig08_euclidean_thrusts", "fig08_euclidean_thrusts_zoom")),
     NotebookSpec("06_summary", "summary table (solve times, chattering)", METRICS,
-                 ("summary.csv", *_figure("summary_solve_times", "summary_input_spectrum"))),
+                 ("summary.csv", "summary_timings.csv",
+                  *_figure("summary_solve_times", "summary_input_spectrum"))),
     NotebookSpec("07_distance_tutorial", "tutorial, the smoothed distance", (),
                  _figure("tutorial_distance_slice", "tutorial_eta_sigma",
                          "tutorial_gradient_field", "tutorial_half_squared_limit"),
                  quick={"grid_points": 60}),
     NotebookSpec("08_animation", "animation of the flight", ("smooth",), ("flight.gif",),
                  quick={"frames": 20}),
-    NotebookSpec("11_timeline", "the paper's clock (issue 12): levers and flights", (),
-                 tuple(f"timeline/{f}" for f in (
-                     *_figure("timeline_levers", "timeline_flights"), "timeline_levers.csv",
-                     "timeline_flights.csv")),
-                 quick={"quick": True}),
     NotebookSpec("14_controller_tutorial", "tutorial, the controller: problem (21), RTI and IPOPT, "
                  "a ground robot", (),
                  _figure("tutorial_controller_plan", "tutorial_controller_ground_robot"),
@@ -280,22 +277,27 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
         f"{len(selected)} notebook(s) -> {_show(figures)}")
 
     result_dirs, simulated, timings = {}, [], {}
+    flights = []
     for i, spec in enumerate(todo, 1):
         out = spec.directory(results_dir)
         step = f"[{i}/{total}] simulate {spec.name}"
+        result_dirs[spec.config.distance.metric] = out
         if is_cached(out) and not force:
             log(f"{step}: cached in {_show(out)}")
-            result_dirs[spec.config.distance.metric] = out
-            continue
-        log(f"{step}: flying up to {spec.max_steps} steps ...")
-        t0 = time.perf_counter()
+        else:
+            log(f"{step}: flying up to {spec.max_steps} steps ...")
+            flights.append((step, spec))
+    # The missions are independent: one process each, up to one per core.
+    with _pool(len(flights)) as pool:
         # Not on a terminal (a log, CI): plain lines every 30 s instead of a silent minute.
-        lines = log if progress is None and not sys.stderr.isatty() else progress
-        out, _ = ensure_result(spec, results_dir, force=True, progress=lines)
-        timings[spec.name] = time.perf_counter() - t0
-        simulated.append(spec.name)
-        result_dirs[spec.config.distance.metric] = out
-        log(f"{step}: done in {duration(timings[spec.name])} -> {_show(out)}")
+        lines = "lines" if progress is None and not sys.stderr.isatty() else progress
+        futures = [(step, spec, pool.submit(_fly, spec, results_dir, lines))
+                   for step, spec in flights]
+        for step, spec, future in futures:
+            out, seconds = future.result()
+            timings[spec.name] = seconds
+            simulated.append(spec.name)
+            log(f"{step}: done in {duration(seconds)} -> {_show(out)}")
 
     outputs, ran = [], []
     for i, nb in enumerate(selected, len(todo) + 1):
@@ -323,10 +325,70 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
                 f"{int(np.sum(reached >= 0))}/{len(reached)} targets reached; its figures "
                 "show the partial mission")
 
+    if notebooks is None and max_steps is None and not quick:
+        from .evidence import stamp
+
+        # Last, once every figure is in place: this set is what this code makes.
+        stamp(figures, "python -m paper_repro reproduce" + (
+            f" --preset {preset}" if preset not in (None, "paper") else ""))
     elapsed = time.perf_counter() - start
     log(f"done in {duration(elapsed)}: {len(outputs)} file(s) in {_show(figures)}, executed "
         f"notebooks in {_show(executed)}")
     return ReproduceReport(result_dirs, simulated, ran, figures, outputs, timings, elapsed)
+
+
+def _fly(spec: RunSpec, results_dir, progress) -> tuple[Path, float]:
+    """One mission into the cache (a worker process's task): its folder and its wall time.
+
+    ``progress`` : as for :func:`~paper_repro.simulation.simulate`, or ``"lines"``: plain
+    progress lines, and while nothing else is printed (building the controller compiles C on
+    a new machine) a line every :data:`HEARTBEAT_S` that says the worker is alive."""
+    import threading
+
+    t0 = time.perf_counter()
+    if progress != "lines":
+        out, _ = ensure_result(spec, results_dir, force=True, progress=progress)
+        return out, time.perf_counter() - t0
+    lines, done = _Lines(f"{spec.name}: "), threading.Event()
+
+    def heartbeat():
+        while not done.wait(HEARTBEAT_S / 4):
+            if time.perf_counter() - lines.last >= HEARTBEAT_S:
+                lines(f"  {duration(time.perf_counter() - t0)} elapsed (building the "
+                      "controller, or between progress lines)")
+
+    threading.Thread(target=heartbeat, daemon=True).start()
+    try:
+        out, _ = ensure_result(spec, results_dir, force=True, progress=lines)
+    finally:
+        done.set()
+    return out, time.perf_counter() - t0
+
+
+HEARTBEAT_S = 20.0
+"""s: the longest a flying worker stays silent."""
+
+
+class _Lines:
+    """Prints a line at once, after ``prefix`` (the run's name: two flights print at once),
+    and remembers when (for the heartbeat)."""
+
+    def __init__(self, prefix: str = ""):
+        self.prefix, self.last = prefix, time.perf_counter()
+
+    def __call__(self, line: str) -> None:
+        self.last = time.perf_counter()
+        print(f"{self.prefix}{line.strip()}", flush=True)
+
+
+def _pool(flights: int):
+    """Worker processes for ``flights`` missions: one per flight, at most one per core (a
+    process of its own even for one flight, so every mission is flown the same way)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    workers = max(1, min(flights, os.cpu_count() or 1))
+    return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

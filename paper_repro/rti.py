@@ -68,10 +68,12 @@ class RealTimeNMPC:
     capacities : smaller LiDAR capacities (points per region slot) compiled besides the
         config's ``points_per_region`` (see :class:`LinearisationLadder`; ``()``: the
         config's capacity only).
-    line_search : shorten a step that does not decrease the ℓ1 merit function enough, and
-        damp the next QPs after it (:class:`MeritLineSearch`); ``False`` takes every full
-        step (the textbook real-time iteration, whose inputs fall into a period-2
-        oscillation between their bounds when a region moves at the vehicle).
+    line_search : ``None`` (default): ``config.nmpc.line_search``. ``True``: the damped RTI,
+        which shortens a step that does not decrease the ℓ1 merit function enough and damps
+        the next QPs after it (:class:`MeritLineSearch`); smoother than the paper's
+        controller with the Euclidean metric. ``False``: every full step (the textbook
+        real-time iteration, whose inputs fall into a period-2 oscillation between their
+        bounds when a region moves at the vehicle).
 
     Attributes
     ----------
@@ -84,22 +86,25 @@ class RealTimeNMPC:
     def __init__(self, config: Config | None = None, model: VehicleModel | None = None,
                  max_iter: int = 1, step_tol: float = 1e-6, qp_solver: str = "riccati",
                  compile: bool = True, capacities: tuple[int, ...] = (1, 8, 16, 24, 32, 48),
-                 line_search: bool = True):
+                 line_search: bool | None = None):
         if not (isinstance(max_iter, int) and max_iter >= 1):
             raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
         if not step_tol > 0:
             raise ValueError(f"step_tol must be > 0, got {step_tol!r}")
         if not all(isinstance(c, int) and c >= 1 for c in capacities):
             raise ValueError(f"capacities must be integers >= 1, got {capacities!r}")
-        if not isinstance(line_search, bool):
-            raise ValueError(f"line_search must be True or False, got {line_search!r}")
+        if not (line_search is None or isinstance(line_search, bool)):
+            raise ValueError(f"line_search must be True, False or None (the config's), got "
+                             f"{line_search!r}")
         if qp_solver not in ("riccati", "hpipm"):
             raise ValueError(f"qp_solver must be 'riccati' or 'hpipm', got {qp_solver!r}")
         self.ocp = ocp = OCP(config, model)
         self.config, self.horizon = ocp.config, ocp.horizon
+        if line_search is None:
+            line_search = self.config.nmpc.line_search
         self.max_iter, self.step_tol = max_iter, step_tol
         self.layout = QPLayout.of(ocp)
-        self.ladder = LinearisationLadder(ocp, capacities, compile)
+        self.ladder = LinearisationLadder(ocp, capacities, compile, values=line_search)
         self.qp_solver = qp_solver if self.ladder.native else "hpipm"
         self.qp = QPChain(self.layout, self.qp_solver)
         self.line_search = MeritLineSearch(self.layout, max_trials=4 if line_search else 0)
@@ -335,11 +340,12 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
 
 class Rung(NamedTuple):
     """One capacity of the ladder: its scan layout, its linearisation and the values-only
-    function of the line search (see :func:`linearisation`)."""
+    function of the line search (see :func:`linearisation`; ``None`` without a line
+    search)."""
 
     scan: ScanLayout
     linearisation: ca.Function | NativeFunction
-    values: ca.Function | NativeFunction
+    values: ca.Function | NativeFunction | None
 
 
 class LinearisationLadder:
@@ -359,26 +365,31 @@ class LinearisationLadder:
     capacities : the smaller rungs.
     compile : build C (cached, :class:`~paper_repro._native.NativeFunction`); without it, or
         without a compiler, one rung evaluated in CasADi's virtual machine.
+    values : also build each rung's values-only function (what the line search evaluates);
+        without a line search it is never called, and not compiling it halves the first
+        build on a new machine.
 
     Attributes
     ----------
     rungs : [:class:`Rung`], by increasing capacity.  native : compiled or not.
     """
 
-    def __init__(self, ocp: OCP, capacities=(), compile: bool = True):
+    def __init__(self, ocp: OCP, capacities=(), compile: bool = True, values: bool = True):
         top = ocp.scan.capacity
         fn = linearisation(ocp)
         self.sizes = [fn.nnz_out(i) for i in range(fn.n_out())]
         self.native = bool(compile and compiler() is not None)
         if not self.native:
-            self.rungs = [Rung(ocp.scan, fn, linearisation(ocp, values_only=True))]
+            self.rungs = [Rung(ocp.scan, fn, linearisation(ocp, values_only=True)
+                               if values else None)]
         else:
             self.rungs = []
             for cap in sorted({c for c in capacities if c < top} | {top}):
                 scan = ocp.scan.with_capacity(cap)
                 self.rungs.append(Rung(
                     scan, NativeFunction(fn if cap == top else linearisation(ocp, scan)),
-                    NativeFunction(linearisation(ocp, scan, values_only=True))))
+                    NativeFunction(linearisation(ocp, scan, values_only=True))
+                    if values else None))
         self._empty = {}  # capacity -> packed parameters of a scan that sees nothing
 
     def for_scan(self, visible) -> Rung:

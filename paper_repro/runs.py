@@ -7,9 +7,11 @@ configuration, the step limit and the fingerprint of the scene the configuration
 * the same spec always lands in the same folder ``<results>/<name>-<key[:12]>/``, and a second
   request only loads it (``reproduce`` redraws, an interrupted study redoes only what is
   missing);
-* a changed parameter, or a scene generator that now builds other clouds, gives a new folder.
-  The key covers the configuration and the scene, not the code: after changing a solver or the
-  model, pass ``force=True``.
+* a changed parameter, or a scene generator that now builds other clouds, gives a new folder;
+* a change of code that moves a flight changes the golden hash
+  (:func:`paper_repro.evidence.golden_hash`, part of the key) once the golden flights are
+  written again, and every cached run is retired with it: nothing flown by older code is
+  redrawn as if it were this code's. ``force=True`` flies again regardless.
 
 :func:`ensure_result` writes a result into a private ``.partial`` folder and renames it into
 place, so a crash, a killed worker or two workers racing on one spec never leave a folder that
@@ -79,20 +81,13 @@ class RunSpec:
         return base / f"{self.name}-{self.key[:HASH_LENGTH]}"
 
 
-KEY_NEUTRAL_DEFAULTS = {("distance", "window"): 0.0, ("simulation", "prediction"): "static"}
-"""Options added after runs were cached, at the value that flies exactly as before: left out of
-the key at that value, so adding an option does not orphan every cached run."""
-
-
 def run_key(config: Config, max_steps: int, scene_fingerprint: str) -> str:
-    """SHA-256 (hex) of a run: ``config.to_dict()`` (less :data:`KEY_NEUTRAL_DEFAULTS`),
-    ``max_steps`` and the scene fingerprint."""
-    described = config.to_dict()
-    for (part, name), neutral in KEY_NEUTRAL_DEFAULTS.items():
-        if described[part].get(name) == neutral:
-            del described[part][name]
-    payload = {"config": described, "max_steps": int(max_steps),
-               "scene": scene_fingerprint}
+    """SHA-256 (hex) of a run: ``config.to_dict()``, ``max_steps``, the scene fingerprint and
+    the golden hash (the code's behaviour)."""
+    from .evidence import golden_hash
+
+    payload = {"config": config.to_dict(), "max_steps": int(max_steps),
+               "scene": scene_fingerprint, "golden": golden_hash()}
     text = json.dumps(payload, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode()).hexdigest()
 

@@ -177,7 +177,8 @@ class SimulationResult:
 
 def simulate(config: Config | None = None, controller: Controller | None = None,
              max_steps: int | None = None, progress: bool | None = None,
-             scene: Scene | None = None, faults: Faults | None = None) -> SimulationResult:
+             scene: Scene | None = None, faults: Faults | None = None,
+             initial_state=None) -> SimulationResult:
     """Fly the configured scenario in closed loop.
 
     Parameters
@@ -188,10 +189,13 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
         (:meth:`reset`), so a flight is the same whether the controller is new or reused.
     max_steps : overrides ``config.simulation.max_steps``.
     progress : a progress bar (``True``; default: only when writing to a terminal), or a
-        callable that receives a plain progress line every 30 s (for logs).
+        callable that receives a plain progress line every 15 s (for logs).
     scene : fly this scene instead of ``config.simulation.scenario`` (e.g. your own regions, or
         a variant made with ``dataclasses.replace``); it is saved with the result.
     faults : sensor faults to inject (:class:`Faults`); none by default.
+    initial_state : (12,) state to start from instead of hover at ``scene.start`` (to fly a
+        window of a mission from a state another flight reached, every solver from the same
+        state; the clock still starts at t = 0, so use it on static scenes).
 
     Before anything is built, :func:`~paper_repro.safety.check_setup` rejects an inconsistent
     mission (``ValueError``) and :func:`~paper_repro.safety.setup_hazards` warns of an unsafe
@@ -243,7 +247,13 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
                                 else (None, None))
     stall_steps = int(np.ceil(sim.stall_time / ts))
 
-    x, _ = equilibrium(scene.start, 0.0, cfg.quadrotor)
+    if initial_state is None:
+        x, _ = equilibrium(scene.start, 0.0, cfg.quadrotor)
+    else:
+        x = np.array(initial_state, dtype=float)
+        if x.shape != (N_STATES,) or not np.isfinite(x).all():
+            raise ValueError(f"initial_state must be a finite ({N_STATES},) state, got shape "
+                             f"{x.shape}")
     log = _Log(sim.max_steps)
     reached = np.full(len(targets), -1)
     target_index, slow, outcome = 0, 0, "step_limit"
@@ -342,7 +352,7 @@ def run_metadata() -> dict:
 
 def _progress_bar(total: int, progress):
     """A tqdm bar (``True``, or ``None`` on a terminal), plain lines handed to ``progress``
-    every 30 s (a callable: for logs), or nothing."""
+    every 15 s (a callable: for logs), or nothing."""
     if callable(progress):
         return _ProgressLines(total, progress)
     if progress is None:
@@ -452,7 +462,7 @@ def _finite_points(visible) -> tuple[list[np.ndarray], int]:
 class _ProgressLines:
     """The part of tqdm's interface :func:`simulate` uses, as a line every ``interval`` s."""
 
-    def __init__(self, total: int, log, interval: float = 30.0):
+    def __init__(self, total: int, log, interval: float = 15.0):
         self.total, self.log, self.interval = total, log, interval
         self.n, self.postfix = 0, {}
         self.start = self.last = time.perf_counter()

@@ -40,7 +40,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import paths
+from . import metrics, paths
 from .config import Config, SensorParams, SimulationParams
 from .reproduce import duration
 from .runs import RunSpec, ensure_result
@@ -56,9 +56,7 @@ nothing."""
 CSV_ROWS = 5_000
 """Tables up to this many rows are also written as CSV (readable in a diff)."""
 
-TIMING_COLUMNS = ("solve_mean_ms", "solve_median_ms", "solve_p95_ms", "solve_p99_ms",
-                  "solve_max_ms", "wall_time_s", "steps_per_s", "task_time_s", "worker",
-                  "simulated", "result_dir")
+TIMING_COLUMNS = (*metrics.TIMING_COLUMNS, "task_time_s", "worker", "simulated", "result_dir")
 """Columns that depend on the machine, the load or the cache, not on the flight."""
 
 
@@ -255,8 +253,14 @@ def moving_obstacles(quick: bool = False, scenes: int | None = None,
     """Random crossings (``"random-crossing"``: every region moves across the line at
     0.5–1.5 m/s) × the predictions of :data:`PREDICTIONS` × {smoothed, Euclidean}, on
     ``scenes`` passages (30; 2 with ``quick``). Does the static assumption collide where
-    prediction does not?"""
+    prediction does not?
+
+    Flown with the damped real-time iteration (``nmpc.line_search = True``): where a region
+    moves at the vehicle the full Gauss-Newton steps fall into a period-2 oscillation of the
+    thrusts between their bounds that the converged controller (IPOPT) does not show, and the
+    damped iteration stays within millimetres of IPOPT there (``benchmarks/fidelity.py``)."""
     n, base, steps = _passages(quick, scenes, 30, base)
+    base = dataclasses.replace(base, nmpc=dataclasses.replace(base.nmpc, line_search=True))
     specs = []
     for prediction in PREDICTIONS:
         cfg = dataclasses.replace(base, simulation=dataclasses.replace(
@@ -271,10 +275,23 @@ def moving_obstacles(quick: bool = False, scenes: int | None = None,
                  f"random crossings, prediction in {PREDICTIONS} x both metrics, {n} passages")
 
 
+def timeline_flights(quick: bool = False, scenes: int | None = None,
+                     base: Config | None = None) -> Study:
+    """The paper mission under each reading of the printed set-up that could set its clock
+    (:func:`paper_repro.timeline.timeline_study`); ``scenes`` does not apply."""
+    from .timeline import timeline_study
+
+    if scenes is not None:
+        raise ValueError("scenes does not apply to the timeline study (it flies the paper "
+                         "mission)")
+    return timeline_study(quick=quick, base=base)
+
+
 STUDIES: dict[str, Callable[..., Study]] = {"monte_carlo": monte_carlo, "eta_sweep": eta_sweep,
                                             "sensor_noise": sensor_noise,
                                             "sensing_window": sensing_window,
-                                            "moving_obstacles": moving_obstacles}
+                                            "moving_obstacles": moving_obstacles,
+                                            "timeline": timeline_flights}
 """The studies ``python -m paper_repro study NAME`` knows."""
 
 
@@ -378,11 +395,18 @@ def run_task(spec: RunSpec, runs_dir: str, force: bool = False) -> dict:
     return row
 
 
-def load_table(directory):
-    """The table saved by :func:`run_study` in ``directory`` (Parquet)."""
+def load_table(directory, timings: bool = True):
+    """The table saved by :func:`run_study` in ``directory``: the flight columns
+    (``table.parquet``) joined, by run ``name``, with this machine's :data:`TIMING_COLUMNS`
+    (``timings.csv``) unless ``timings=False``."""
     import pandas as pd
 
-    return pd.read_parquet(Path(directory) / "table.parquet")
+    directory = Path(directory)
+    table = pd.read_parquet(directory / "table.parquet")
+    path = directory / "timings.csv"
+    if timings and path.is_file():
+        table = table.merge(pd.read_csv(path), on="name", how="left", validate="one_to_one")
+    return table
 
 
 # --- the command ----------------------------------------------------------------------------
@@ -419,6 +443,7 @@ def add_arguments(parser) -> None:
 def main(args) -> int:
     """Run ``python -m paper_repro study``: the study (cached runs are only loaded), its table,
     then its notebook, which draws the figures from the saved table."""
+    from .evidence import command_line, stamp
     from .presets import DEFAULT, preset
 
     study = make_study(args.name, quick=args.quick, base=preset(args.preset),
@@ -441,20 +466,22 @@ def main(args) -> int:
                          paths.executed_dir(args.quick) / f"{notebook}.ipynb", params)
         print(f"notebook {notebook}: figures in {result.directory} "
               f"({duration(time.perf_counter() - t0)})", flush=True)
+        # Last, once the table and every figure are in place: the set is this code's.
+        stamp(result.directory, command_line())
     return 0
 
 
 STUDY_NOTEBOOKS = {"monte_carlo": "09_monte_carlo", "eta_sweep": "10_eta_sweep",
                    "sensor_noise": "13_sensor_noise", "sensing_window": "15_smooth_sensing",
-                   "moving_obstacles": "16_moving_obstacles"}
+                   "moving_obstacles": "16_moving_obstacles", "timeline": "11_timeline"}
 """The notebook that draws each study's figures from its saved table."""
 
 STUDY_NOTEBOOK_QUICK = {"sensing_window": {"mission": "encounter", "mission_steps": 3000},
-                        "moving_obstacles": {"crossing_steps": 1500}}
+                        "moving_obstacles": {"crossing_steps": 1500}, "timeline": {"quick": True}}
 """Notebook parameters of a ``--quick`` study beyond its table (notebook 15 also flies one
 mission with and without the window: the encounter's first 30 s instead of the paper's;
 notebook 16 flies the crossing scene with each prediction: its first 15 s, past the meeting,
-instead of the whole passage)."""
+instead of the whole passage; notebook 11 sweeps fewer values per lever)."""
 
 
 def study_dir(name: str, quick: bool = False) -> Path:
@@ -509,7 +536,6 @@ def _run_on_dask(specs, runs_dir: str, force: bool, done, workers, scheduler, cl
             cluster.close()
 
 
-@functools.lru_cache(maxsize=8)
 def _passages(quick: bool, scenes: int | None, default: int, base: Config | None):
     """(number of scenes, base config, steps per passage) of a passage study: ``default``
     scenes, 2 with ``quick`` (and the short quick passages), unless ``scenes`` says."""
@@ -518,6 +544,7 @@ def _passages(quick: bool, scenes: int | None, default: int, base: Config | None
     return n, base or Config(), QUICK_STEPS if quick else PASSAGE_STEPS
 
 
+@functools.lru_cache(maxsize=8)
 def _controller(key: str):
     """The controller of a configuration, built once per worker process.
 
@@ -556,27 +583,43 @@ def _failure(exc: BaseException) -> dict:
 
 
 def _save(study: Study, table, out: Path, wall: float) -> None:
-    """``table.parquet`` (+ CSV when small) and ``study.json``, each written atomically."""
+    """The study's files, each written atomically, in two groups:
+
+    * what the flights determine, byte-stable on any machine of the same kind:
+      ``table.parquet`` (+ ``table.csv`` when small), every column but :data:`TIMING_COLUMNS`,
+      and ``study.json`` (the runs, their configurations, the golden hash);
+    * what the machine determines: ``timings.csv`` (:data:`TIMING_COLUMNS` per run, by
+      ``name``) and ``timings.json`` (wall time, versions, commit, machine).
+
+    :func:`load_table` joins the two again."""
+    from .evidence import golden_hash
     from .simulation import run_metadata
 
-    tmp = out / f".table.{os.getpid()}.parquet"
-    table.to_parquet(tmp, index=False)
-    os.replace(tmp, out / "table.parquet")
+    flight, timings = metrics.split_timings(table, TIMING_COLUMNS)
+    timing = list(timings.columns)
+    _atomic(out / "table.parquet", lambda p: flight.to_parquet(p, index=False))
     if len(table) <= CSV_ROWS:
-        tmp = out / f".table.{os.getpid()}.csv"
-        table.to_csv(tmp, index=False)
-        os.replace(tmp, out / "table.csv")
+        _atomic(out / "table.csv", lambda p: flight.to_csv(p, index=False))
+    _atomic(out / "timings.csv", lambda p: table[["name", *timing]].to_csv(p, index=False))
     base = study.specs[0].config.to_dict()
     meta = {"name": study.name, "description": study.description,
-            "runs": len(study.specs), "wall_time_s": wall, "meta": run_metadata(),
-            "base_config": base,
+            "runs": len(study.specs), "golden": golden_hash(), "base_config": base,
             "specs": [{"name": s.name, "key": s.key, "max_steps": s.max_steps,
                        "labels": dict(s.labels),
                        "config_changes": _changes(base, s.config.to_dict())}
                       for s in study.specs]}
-    tmp = out / f".study.{os.getpid()}.json"
-    tmp.write_text(json.dumps(meta, indent=1, default=str) + "\n")
-    os.replace(tmp, out / "study.json")
+    text = json.dumps(meta, indent=1, default=str) + "\n"
+    _atomic(out / "study.json", lambda p: p.write_text(text))
+    machine = json.dumps({"wall_time_s": wall, "meta": run_metadata()}, indent=1,
+                         default=str) + "\n"
+    _atomic(out / "timings.json", lambda p: p.write_text(machine))
+
+
+def _atomic(path: Path, write) -> None:
+    """``write(tmp)`` then rename ``tmp`` to ``path``: a reader never sees half a file."""
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}{path.suffix}")
+    write(tmp)
+    os.replace(tmp, path)
 
 
 def _changes(base: dict, config: dict) -> dict:

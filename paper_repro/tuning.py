@@ -50,7 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import paths
+from . import metrics, paths
 from .config import Config
 from .runs import RunSpec
 from .study import PASSAGE_STEPS, QUICK_STEPS, Study, passage_config, passage_spec, run_study
@@ -436,8 +436,9 @@ def tune(trials: int = DEFAULT_TRIALS, quick: bool = False, workers: int | None 
             log(f"tune: trial {t.number} was left running by an earlier driver: failed, its "
                 "parameters queued again")
         _write_json(out / "tuning.json", {
-            "study_name": study_name, "storage": storage, "sampler": sampler, "seed": seed,
-            **stored, "space_why": {n: r.why for n, r in space.items()}})
+            "study_name": study_name, "storage": _shown_storage(storage, out),
+            "sampler": sampler, "seed": seed, **stored,
+            "space_why": {n: r.why for n, r in space.items()}})
         remaining = trials - len(_finished(study))
         n_jobs = 1 if dask_client is None else max(
             1, len(dask_client.scheduler_info()["workers"]))
@@ -472,10 +473,12 @@ def tune(trials: int = DEFAULT_TRIALS, quick: bool = False, workers: int | None 
             _ask_and_tell(study, objective, remaining, n_jobs, callbacks)
     wall = time.perf_counter() - start
     _write_json(out / "tuning.json", {
-        "study_name": study_name, "storage": storage, "sampler": sampler, "seed": seed,
-        "trials": len(_finished(study)), "flown_trials_last_call": flown[0],
-        "wall_time_s_last_call": wall, **stored,
+        "study_name": study_name, "storage": _shown_storage(storage, out), "sampler": sampler,
+        "seed": seed, "trials": len(_finished(study)), **stored,
         "space_why": {n: r.why for n, r in space.items()}})
+    # What the machine determines, apart (tuning.json is what the flights determine).
+    _write_json(out / "timings.json", {"flown_trials_last_call": flown[0],
+                                       "wall_time_s_last_call": wall})
     return TuningResult(study, storage, train, out, flown[0], wall)
 
 
@@ -950,6 +953,9 @@ def main(args) -> int:
                          paths.executed_dir(quick) / "12_tuning.ipynb",
                          {"tuning_dir": str(out)})
         print(f"notebook 12_tuning: figures in {out}", flush=True)
+        from .evidence import command_line, stamp
+
+        stamp(out, command_line())  # last: the set is this code's
     return 0
 
 
@@ -966,8 +972,13 @@ def run_heldout(res: TuningResult, n: int = len(HELDOUT_SEEDS), client=None, run
                              client=client, workers=0 if client is None else None,
                              out=runs_dir.parent / "tuning" / "heldout", runs_dir=runs_dir,
                              log=log)
-    keep = [c for c in table.columns if c not in ("result_dir", "worker", "traceback")]
-    table[keep].to_csv(res.directory / "heldout_table.csv", index=False, float_format="%.6g")
+    from .study import TIMING_COLUMNS
+
+    keep = [c for c in table.columns if c != "traceback"]
+    flight, timings = metrics.split_timings(table[keep], TIMING_COLUMNS)
+    flight.to_csv(res.directory / "heldout_table.csv", index=False, float_format="%.6g")
+    timings.insert(0, "name", table["name"])
+    timings.to_csv(res.directory / "heldout_timings.csv", index=False, float_format="%.4g")
     _write_json(res.directory / "presets.json", presets_from_setups(setups, base))
     return table
 
@@ -979,6 +990,13 @@ def tuning_dir(quick: bool = False) -> Path:
 
 
 # --- helpers --------------------------------------------------------------------------------
+
+def _shown_storage(storage: str, out: Path) -> str:
+    """The storage URL as recorded in ``tuning.json``: relative to the tuning folder when the
+    database lives in it (the same on every machine), else as given."""
+    prefix = f"sqlite:///{out}/"
+    return "sqlite:///" + storage[len(prefix):] if storage.startswith(prefix) else storage
+
 
 def _check_tune_args(trials, quick, workers, scheduler, storage, space, objectives, scenes,
                      seeds, sampler, max_steps, base) -> dict:

@@ -22,8 +22,7 @@ SPECS = {nb.name: nb for nb in R.NOTEBOOKS}
 TINY = Config(nmpc=NMPCParams(region_slots=1, points_per_region=64))
 TINY_STEPS = 150
 # On top of each notebook's own quick parameters: fewer frames, a coarser tutorial grid.
-CI_OVERRIDES = {"08_animation": {"frames": 4}, "07_distance_tutorial": {"grid_points": 40},
-                "11_timeline": {"max_steps": 200}}
+CI_OVERRIDES = {"08_animation": {"frames": 4}, "07_distance_tutorial": {"grid_points": 40}}
 
 
 @pytest.fixture(scope="session")
@@ -50,10 +49,13 @@ STUDY_OUTPUTS = {
                             "moving_obstacles.gif", "moving_obstacles_rates.csv",
                             "moving_obstacles_rates.png", "moving_obstacles_summary.csv",
                             "moving_obstacles_paired.csv", "moving_obstacles_paired.png"),
+    "11_timeline": ("timeline_levers.csv", "timeline_levers.png", "timeline_flights.csv",
+                    "timeline_flights.png"),
 }
 # Study notebooks that also fly: a short mission, cached in the test's folder.
 STUDY_OVERRIDES = {"15_smooth_sensing": {"mission": "encounter", "mission_steps": 3000},
-                   "16_moving_obstacles": {"crossing_steps": 1500, "frames": 8}}
+                   "16_moving_obstacles": {"crossing_steps": 1500, "frames": 8},
+                   "11_timeline": {"quick": True}}
 
 
 @pytest.fixture(scope="session")
@@ -108,8 +110,6 @@ def test_notebook_executes_with_quick_parameters(name, tiny_results, tmp_path):
     figures = tmp_path / "figures"
     params = R.notebook_parameters(spec, tiny_results, figures, quick=True,
                                    overrides=CI_OVERRIDES.get(name))
-    if name == "11_timeline":  # its flights: short, and cached in the test's folder
-        params.update(runs_dir=str(tmp_path / "runs"), study_dir=str(tmp_path / "study"))
     out = R.execute_notebook(R.notebook_path(name), tmp_path / f"{name}.ipynb", params)
 
     executed = nbformat.read(out, as_version=4)
@@ -147,7 +147,9 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, tmp_path
     figures.mkdir()
     params = {"study_dir": str(study.directory), "figures_dir": str(figures)}
     if name in STUDY_OVERRIDES:
-        params.update(STUDY_OVERRIDES[name], runs_dir=str(tmp_path / "runs"))
+        params.update(STUDY_OVERRIDES[name])
+        if "runs_dir" in R.declared_parameters(R.notebook_path(name)):  # it flies, too
+            params["runs_dir"] = str(tmp_path / "runs")
     out = R.execute_notebook(R.notebook_path(name), tmp_path / f"{name}.ipynb", params)
     code = [c for c in nbformat.read(out, as_version=4).cells if c.cell_type == "code"]
     assert not any(o.get("output_type") == "error" for c in code for o in c.outputs)

@@ -213,3 +213,20 @@ def test_the_noise_study_shares_its_perfect_runs_and_perturbs_the_others():
     clean = simulate(perfect[0].config, ctl, max_steps=40, progress=False)
     np.testing.assert_array_equal(a.x, b.x)
     assert not np.array_equal(a.visible_points, clean.visible_points)
+
+
+def test_a_worker_builds_each_controller_once(monkeypatch):
+    """Two passages of one configuration share one controller in a worker process."""
+    import paper_repro.controllers as controllers
+
+    built = []
+    real = controllers.make_controller
+    monkeypatch.setattr(controllers, "make_controller",
+                        lambda cfg, *a, **k: built.append(cfg) or real(cfg, *a, **k))
+    S._controller.cache_clear()
+    specs = S.monte_carlo(scenes=2).specs
+    keys = [S._controller_key(s.config) for s in specs if dict(s.labels)["metric"] == "smooth"]
+    assert len(keys) == 2 and keys[0] == keys[1]
+    first, second = (S._controller(k) for k in keys)
+    assert first is second and len(built) == 1
+    S._controller.cache_clear()

@@ -1,0 +1,254 @@
+"""The README's numbers, formatted from the committed tables (never typed by hand).
+
+Each block of the README between ``<!-- begin NAME -->`` and ``<!-- end NAME -->`` is the
+markdown that :data:`BLOCKS` ``[NAME]`` renders from a committed table in ``figures/``.
+``python -m paper_repro readme`` writes them; ``tests/test_report.py`` fails when the README
+holds anything else, so a regenerated table and the prose that quotes it cannot part.
+Only what the flights determine is quoted; solve times live in the benchmarks' own output.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from pathlib import Path
+
+import pandas as pd
+
+from . import paths
+
+
+def summary() -> str:
+    """The paper mission, both presets: ``figures/summary.csv`` and the preset's."""
+    rows = []
+    for preset, folder in (("`paper` (N = 35)", paths.figures_dir()),
+                           ("`paper-timeline` (N = 43)",
+                            paths.figures_dir() / "presets" / "paper-timeline")):
+        table = pd.read_csv(folder / "summary.csv")
+        for r in table.itertuples():
+            rows.append([preset, "smoothed D" if r.metric == "smooth" else "Euclidean ½d²",
+                         f"{r.mission_time_s:,.1f} s", r.targets_reached,
+                         f"{r.failed_solves:,}", f"{r.tv_u_N:,.0f} N",
+                         _share(r.hf_energy_fraction), f"{r.du_sign_changes:,}",
+                         f"{r.max_abs_du_N:.2f} N", f"{r.min_clearance_m:.3f} m"])
+    return _markdown(["preset", "run", "mission time", "targets", "failed solves",
+                      "total variation of u", "power > 5 Hz", "sign changes of Δu",
+                      "max |Δu|", "min clearance"], rows)
+
+
+def fidelity() -> str:
+    """``figures/fidelity/fidelity.csv``: every window, every solver."""
+    table = pd.read_csv(paths.figures_dir() / "fidelity" / "fidelity.csv")
+    rows = [[r.window, r.solver, f"{r.tv_per_s:,.3g}", _ratio(r.tv_per_s_ratio),
+             f"{r.hf_share:.2f}", f"{r.sign_changes:,}", f"{r.max_du:.2f}",
+             f"{r.jumps_1N}", f"{r.min_clearance_m:.3f}", _metres(r.deviation_m),
+             f"{r.iteration_limit}"] for r in table.itertuples()]
+    return _markdown(["window", "solver", "TV of u, N/s", "TV / IPOPT", "power > 5 Hz",
+                      "sign changes", "max |Δu|, N", "steps |Δu| > 1 N",
+                      "min clearance, m", "from IPOPT's path", "IPOPT at its limit"], rows)
+
+
+def monte_carlo() -> str:
+    """Rates and paired effects of ``figures/studies/monte_carlo/mc_summary.csv``."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "monte_carlo" / "mc_summary.csv")
+    rates = table[table["kind"] == "rate"].set_index(["event", "metric"])
+    events = [("completed", "passage completed"), ("collision", "collision (< 0.35 m)"),
+              ("stalled", "stalled (deadlock)"), ("step_limit", "step limit (150 s)"),
+              ("failed", "run failed")]
+    rows = [[label, *(_rate(rates.loc[(event, m)]) for m in ("smooth", "euclidean"))]
+            for event, label in events]
+    head = _markdown(["", "smoothed D", "Euclidean ½d²"], rows)
+    paired = table[table["kind"] == "paired"]
+    return head + "\n\n" + _paired(paired, "smoothed", "Euclidean")
+
+
+def eta_sweep() -> str:
+    """``figures/studies/eta_sweep/eta_sweep_settings.csv``, one row per setting."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "eta_sweep" / "eta_sweep_settings.csv")
+    # The baseline, then η at the printed σ, then σ at the printed η.
+    printed_sigma = table.loc[table["metric"] == "smooth", "sigma"].mode().iloc[0]
+    order = (table["metric"] == "smooth").astype(int) + 2 * (table["sigma"] != printed_sigma) \
+        * (table["metric"] == "smooth")
+    table = table.assign(_order=order).sort_values(["_order", "eta", "sigma"])
+    rows = []
+    for r in table.itertuples():
+        name = ("Euclidean (η → 0)" if r.metric == "euclidean"
+                else f"η = {r.eta:g} m, σ = {r.sigma:g} m")
+        rows.append([name, f"{r.runs}", _share(r.hf_energy_fraction),
+                     f"{r.tv_u_rate_N_per_s:,.3g} N/s",
+                     _rate_of(r.completed_rate, r.completed_low, r.completed_high),
+                     _share(r.stalled_rate), _rate_of(r.collision_rate, r.collision_low,
+                                                      r.collision_high),
+                     f"{r.min_clearance_m:.2f} m"])
+    return _markdown(["setting", "passages", "power > 5 Hz (median)", "TV of u (median)",
+                      "completed", "stalled", "collision", "min clearance (median)"], rows)
+
+
+def sensor_noise() -> str:
+    """``figures/studies/sensor_noise/sensor_noise_paired.csv``: Euclidean over smoothed, per
+    sensor."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "sensor_noise" /
+                        "sensor_noise_paired.csv")
+    parts = []
+    for sensor in ("perfect", "noisy"):
+        parts.append(f"*{sensor} LiDAR*\n\n" + _paired(table[table["sensor"] == sensor],
+                                                      "smoothed", "Euclidean"))
+    return "\n\n".join(parts)
+
+
+def sensing_window() -> str:
+    """``figures/studies/sensing_window/sensing_window_summary.csv``, one row per width."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "sensing_window" /
+                        "sensing_window_summary.csv")
+    rows = [[f"{r.window_m:g} m", f"{r.runs}", f"{r.scan_changes:g}", _share(r.jump_share),
+             f"{1e3 * r.du_at_changes_N:.3g} / {1e3 * r.du_around_changes_N:.3g} mN",
+             f"{r.min_clearance_median_m:.3f} m", f"{r.tv_u_rate_N_per_s:.3g} N/s"]
+            for r in table.itertuples()]
+    return _markdown(["window w", "passages", "changes of the visible set (median)",
+                      "share of changes with a step > 10 mN", "median |Δu| at / around",
+                      "min clearance (median)", "TV of u (median)"], rows)
+
+
+def moving_obstacles() -> str:
+    """``figures/studies/moving_obstacles/``: collisions per prediction and metric."""
+    folder = paths.figures_dir() / "studies" / "moving_obstacles"
+    rates = pd.read_csv(folder / "moving_obstacles_rates.csv").set_index(
+        ["prediction", "metric", "event"])
+    summary = pd.read_csv(folder / "moving_obstacles_summary.csv").set_index(
+        ["prediction", "metric"])
+    rows = []
+    for prediction in ("static", "oracle", "kalman"):
+        row = [prediction]
+        for metric in ("smooth", "euclidean"):
+            c = rates.loc[(prediction, metric, "collision")]
+            row.append(f"{int(c.k)}/{int(c.n)} [{100 * c.low:.0f}, {100 * c.high:.0f}] %")
+        s, e = summary.loc[(prediction, "smooth")], summary.loc[(prediction, "euclidean")]
+        row += [f"{s.min_clearance_median_m:.3f} / {e.min_clearance_median_m:.3f} m",
+                f"{s.min_clearance_min_m:.3f} / {e.min_clearance_min_m:.3f} m",
+                f"{s.tv_u_rate_median_N_per_s:.3g} / {e.tv_u_rate_median_N_per_s:.3g} N/s",
+                f"{_share(s.completed)} / {_share(e.completed)}",
+                f"{int(s.failed_solves):,} / {int(e.failed_solves):,}"]
+        rows.append(row)
+    return _markdown(["prediction", "collisions, smoothed", "collisions, Euclidean",
+                      "min clearance, median (smoothed / Euclidean)", "closest approach",
+                      "TV of u, median", "completed", "failed solves"], rows)
+
+
+def timeline() -> str:
+    """``figures/studies/timeline/timeline_flights.csv``: the candidates flown."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "timeline" / "timeline_flights.csv")
+    rows = [[r.candidate, f"{r.predicted_s:,.0f} s", f"{r.mission_time_s:,.1f} s",
+             f"{r.first_target_s:,.0f} s", r.avoidance, f"{r.min_clearance_m:.2f} m",
+             f"{r.tv_u_N:,.0f} N"] for r in table.itertuples()]
+    return _markdown(["candidate", "linear loop", "mission", "first target",
+                      "cloud in view", "min clearance", "total variation of u"], rows)
+
+
+def tuning() -> str:
+    """``figures/tuning/tuning_heldout_summary.csv``: the held-out passages per set-up."""
+    table = pd.read_csv(paths.figures_dir() / "tuning" / "tuning_heldout_summary.csv")
+    rates = table[table["kind"] == "rate"].set_index(["setup", "event"])
+    setups = list(dict.fromkeys(rates.index.get_level_values(0)))
+    rows = [[label, *(_rate(rates.loc[(s, event)]) for s in setups)]
+            for event, label in (("completed", "completed"), ("collision", "collision"),
+                                 ("stalled", "stalled"))]
+    return _markdown(["held-out passages", *setups], rows)
+
+
+BLOCKS: dict[str, Callable[[], str]] = {
+    "summary": summary, "fidelity": fidelity, "monte_carlo": monte_carlo,
+    "eta_sweep": eta_sweep, "sensor_noise": sensor_noise, "sensing_window": sensing_window,
+    "moving_obstacles": moving_obstacles, "timeline": timeline, "tuning": tuning}
+"""Every generated block of the README, by name."""
+
+_BLOCK = re.compile(r"(<!-- begin (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-- end (?P=name) -->)",
+                    re.S)
+
+
+def render(text: str) -> str:
+    """``text`` with every block replaced by what :data:`BLOCKS` renders now."""
+    def replace(match):
+        name = match["name"]
+        if name not in BLOCKS:
+            raise ValueError(f"README block {name!r} is unknown; known: {sorted(BLOCKS)}")
+        return f"{match[1]}{BLOCKS[name]().rstrip()}\n{match[4]}"
+    return _BLOCK.sub(replace, text)
+
+
+def blocks(text: str) -> dict[str, str]:
+    """The blocks of ``text``, by name (their current contents)."""
+    return {m["name"]: m["body"] for m in _BLOCK.finditer(text)}
+
+
+def readme_path() -> Path:
+    return paths.repo_root() / "README.md"
+
+
+def main(args) -> int:
+    """``python -m paper_repro readme [--check]``."""
+    path = readme_path()
+    text = path.read_text()
+    new = render(text)
+    if args.check:
+        stale = [n for n, body in blocks(text).items() if blocks(new)[n] != body]
+        print("README blocks out of date: " + ", ".join(stale) if stale else
+              "README blocks are current")
+        return 1 if stale else 0
+    path.write_text(new)
+    print(f"README: {len(blocks(new))} block(s) written from figures/")
+    return 0
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--check", action="store_true",
+                        help="only say which blocks differ from the committed tables")
+
+
+# --- formatting -----------------------------------------------------------------------------
+
+def _markdown(header: list[str], rows: list[list]) -> str:
+    def cell(c) -> str:
+        return str(c).replace("|", "\\|")  # a bar inside a cell (|Δu|) must not split it
+
+    lines = ["| " + " | ".join(map(cell, header)) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(map(cell, row)) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def _share(x: float) -> str:
+    return f"{100 * x:.0f} %"
+
+
+def _rate(r) -> str:
+    return _rate_of(r["rate"], r["low"], r["high"], int(r["k"]), int(r["n"]))
+
+
+def _rate_of(rate, low, high, k: int | None = None, n: int | None = None) -> str:
+    count = f"{k}/{n}, " if k is not None else ""
+    return f"{count}{100 * rate:.0f} % [{100 * low:.0f}, {100 * high:.0f}]"
+
+
+def _ratio(x: float) -> str:
+    return "—" if pd.isna(x) else f"×{x:.3g}"
+
+
+def _metres(x: float) -> str:
+    if pd.isna(x) or x == 0:
+        return "—"
+    return f"{1e3 * x:.2g} mm" if x < 0.01 else f"{100 * x:.2g} cm"
+
+
+def _num(x: float) -> str:
+    return f"{x:,.0f}" if abs(x) >= 1000 else f"{x:.3g}"
+
+
+def _paired(table: pd.DataFrame, a: str, b: str) -> str:
+    rows = []
+    for r in table.itertuples():
+        effect = (f"×{_num(r.median_effect)} [{_num(r.low)}, {_num(r.high)}]"
+                  if r.effect.startswith("ratio")
+                  else f"{r.median_effect:+.3g} [{r.low:+.3g}, {r.high:+.3g}]")
+        rows.append([r.label, _num(r.median_smooth), _num(r.median_euclidean), effect,
+                     f"{r.wilcoxon_p:.2g}", f"{int(r.scenes)}"])
+    return _markdown(["measure (median over scenes)", a, b, f"{b} vs {a}, per scene",
+                      "Wilcoxon p", "scenes"], rows)

@@ -1,0 +1,116 @@
+"""The committed evidence is what this commit's code makes (paper_repro.evidence).
+
+* the golden flights, flown now, equal their committed copies;
+* ``golden.json`` is the hash of those copies;
+* every committed evidence set carries that hash, so a change that moves a flight fails here
+  until the golden flights and every evidence set are regenerated;
+* the machinery itself: a stamp goes stale when the golden set changes, and the run cache's
+  keys follow the golden hash.
+"""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from paper_repro import Config, evidence, paths
+from paper_repro.runs import run_key
+
+
+@pytest.fixture(scope="module")
+def golden_check():
+    """Every golden flight flown once (a parent before the flight that starts from it)."""
+    return {row["name"]: row for row in evidence.check_golden()}
+
+
+@pytest.mark.parametrize("flight", evidence.GOLDEN_FLIGHTS, ids=lambda f: f.name)
+def test_golden_flight_equals_its_committed_copy(flight, golden_check):
+    row = golden_check[flight.name]
+    committed = np.load(evidence.golden_dir() / f"{flight.name}.npy")
+    assert row["flown"].shape == committed.shape == (flight.steps, row["flown"].shape[1])
+    assert row["position_error"] <= evidence.POSITION_TOLERANCE, (
+        f"{flight.name} moved by {row['position_error']:.3g} m: regenerate the golden flights "
+        "(python -m paper_repro golden --write) and every evidence set")
+    assert row["input_error"] <= evidence.INPUT_TOLERANCE
+    assert np.isfinite(row["flown"]).all()
+
+
+def test_golden_flights_exercise_what_they_claim(golden_check):
+    """The obstacle flights see their regions; the IPOPT window starts where its parent was."""
+    encounter = golden_check["encounter-smooth"]["flown"]
+    reference = golden_check["reference-encounter-smooth"]["flown"]
+    np.testing.assert_array_equal(reference[0, :12], encounter[600, :12])
+    # Inside the LiDAR's 3 m of the encounter's cloud for the last few hundred steps.
+    from paper_repro.scene import make_scene
+
+    cloud = make_scene("encounter").all_points
+    near = np.linalg.norm(encounter[:, None, :3] - cloud[None], axis=2).min(axis=1)
+    assert (near[400:] < 3.0).all() and near[0] > 3.0
+
+
+def test_golden_json_is_the_hash_of_the_committed_files():
+    stored = json.loads((evidence.golden_dir() / "golden.json").read_text())
+    assert set(stored["files"]) == {f.name for f in evidence.GOLDEN_FLIGHTS}
+    assert evidence.recomputed_golden_hash() == stored["hash"] == evidence.golden_hash()
+
+
+def test_every_committed_evidence_set_was_made_with_the_current_golden_flights():
+    stale = evidence.stale_evidence()
+    assert not stale, (f"evidence made with another golden set: {stale}; regenerate them "
+                       "(README, 'Regenerating the evidence')")
+
+
+def test_every_evidence_folder_is_listed():
+    """A folder of figures/ that holds a stamp, or a study table, is a listed evidence set."""
+    root = paths.figures_dir()
+    stamped = {str(p.parent.relative_to(root)).replace(".", "") for p in
+               root.rglob("evidence.json") if "quick" not in p.parts}
+    tables = {str(p.parent.relative_to(root)) for p in root.rglob("study.json")
+              if "quick" not in p.parts}
+    assert stamped | tables <= set(evidence.EVIDENCE_SETS)
+
+
+def test_a_stamp_goes_stale_when_the_golden_set_changes(tmp_path, monkeypatch):
+    shutil.copytree(evidence.golden_dir(), tmp_path / "figures" / "golden")
+    monkeypatch.setenv(paths.ROOT_ENV, str(tmp_path))
+    study = tmp_path / "figures" / "studies" / "monte_carlo"
+    study.mkdir(parents=True)
+    evidence.stamp(study, "test")
+    before = evidence.golden_hash()
+    assert evidence.stamped_hash(study) == before
+    assert "studies/monte_carlo" not in evidence.stale_evidence()
+    key = run_key(Config(), 100, "fp")
+
+    # A flight moved: one golden file rewritten, golden.json with it.
+    path = tmp_path / "figures" / "golden" / "paper-smooth.npy"
+    np.save(path, np.load(path) + 1e-6)
+    files = {f.name: evidence._sha256(tmp_path / "figures" / "golden" / f"{f.name}.npy")
+             for f in evidence.GOLDEN_FLIGHTS}
+    (tmp_path / "figures" / "golden" / "golden.json").write_text(
+        json.dumps({"hash": evidence._set_hash(files), "files": files}))
+    assert evidence.golden_hash() != before
+    assert "studies/monte_carlo" in evidence.stale_evidence()
+    assert run_key(Config(), 100, "fp") != key  # every cached run is retired with it
+    evidence.stamp(study, "test")
+    assert "studies/monte_carlo" not in evidence.stale_evidence()
+
+
+def test_unknown_golden_flight_is_named():
+    with pytest.raises(ValueError, match="unknown golden flight.*paper-smoth"):
+        evidence.check_golden(["paper-smoth"])
+
+
+@pytest.mark.slow
+def test_the_paper_summary_regenerates_byte_for_byte(tmp_path):
+    """The flight columns of figures/summary.csv are what this code flies: both paper
+    missions (about a minute each, in parallel) and the summary notebook, into a fresh
+    folder, give the committed file byte for byte."""
+    from paper_repro.reproduce import reproduce
+
+    report = reproduce(notebooks=["06_summary"], figures_dir=tmp_path / "figures",
+                       results_dir=tmp_path / "results", executed_dir=tmp_path / "executed",
+                       progress=False, log=lambda line: None)
+    assert sorted(report.simulated) == ["paper-euclidean", "paper-smooth"]
+    committed = (paths.figures_dir() / "summary.csv").read_bytes()
+    assert (tmp_path / "figures" / "summary.csv").read_bytes() == committed
