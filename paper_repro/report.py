@@ -155,7 +155,33 @@ def tuning() -> str:
     return _markdown(["held-out passages", *setups], rows)
 
 
+def regeneration() -> str:
+    """Every evidence set: the command that made it (its ``evidence.json``) and how long it
+    took on the machine that made it (its ``timings.json``)."""
+    import json
+
+    from .evidence import EVIDENCE_SETS
+
+    rows = []
+    for name in EVIDENCE_SETS:
+        folder = paths.figures_dir() / name
+        stamp, timing = folder / "evidence.json", folder / "timings.json"
+        made_by = json.loads(stamp.read_text())["made_by"] if stamp.is_file() else "—"
+        wall = "—"
+        if timing.is_file():
+            data = json.loads(timing.read_text())
+            seconds = data.get("wall_time_s", data.get("wall_time_s_last_call"))
+            wall = f"{seconds / 60:.1f} min" if seconds else "—"
+        rows.append([f"`figures/{name}`" if name else "`figures/`", f"`{made_by}`", wall])
+    return _markdown(["evidence set", "made by", "wall time (2 cores, last run)"], rows)
+
+
+MACHINE_BLOCKS = frozenset({"regeneration"})
+"""Blocks quoting what the machine measured: rendered like the others, never asserted (they
+change with every regeneration)."""
+
 BLOCKS: dict[str, Callable[[], str]] = {
+    "regeneration": regeneration,
     "summary": summary, "fidelity": fidelity, "monte_carlo": monte_carlo,
     "eta_sweep": eta_sweep, "sensor_noise": sensor_noise, "sensing_window": sensing_window,
     "moving_obstacles": moving_obstacles, "timeline": timeline, "tuning": tuning}
@@ -171,7 +197,12 @@ def render(text: str) -> str:
         name = match["name"]
         if name not in BLOCKS:
             raise ValueError(f"README block {name!r} is unknown; known: {sorted(BLOCKS)}")
-        return f"{match[1]}{BLOCKS[name]().rstrip()}\n{match[4]}"
+        try:
+            body = BLOCKS[name]()
+        except FileNotFoundError as exc:
+            raise ValueError(f"README block {name!r} needs {exc.filename}, which does not exist "
+                             "(regenerate its evidence set first)") from exc
+        return f"{match[1]}{body.rstrip()}\n{match[4]}"
     return _BLOCK.sub(replace, text)
 
 

@@ -20,6 +20,7 @@ git-ignored ``figures/quick/``, so a quick look never overwrites the committed f
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import os
@@ -237,7 +238,7 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
               notebooks=None, config: Config | None = None, figures_dir=None,
               results_dir=None, executed_dir=None, overrides: dict | None = None,
               progress: bool | None = None, log=print,
-              preset: str | None = None) -> ReproduceReport:
+              preset: str | None = None, workers: int | None = None) -> ReproduceReport:
     """Simulate what is missing, execute the notebooks, write the figures and the summary.
 
     Parameters
@@ -254,7 +255,11 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
     preset : a name of :data:`paper_repro.presets.PRESETS`, applied to ``config``; any but
         ``"paper"`` (the printed parameters) writes into ``figures/presets/<name>/`` (and
         ``notebooks/executed/presets/<name>/``) unless the folders are given.
+    workers : processes that fly the missions (default: one per mission, at most one per
+        core); ``0`` flies them one after the other in this process (debugging, tests).
     """
+    if workers is not None and not (isinstance(workers, int) and workers >= 0):
+        raise ValueError(f"workers must be an integer >= 0, got {workers!r}")
     start = time.perf_counter()
     if preset is not None:
         from . import presets as _presets
@@ -287,10 +292,10 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
         else:
             log(f"{step}: flying up to {spec.max_steps} steps ...")
             flights.append((step, spec))
+    # Not on a terminal (a log, CI): plain lines instead of a silent minute.
+    lines = "lines" if progress is None and not sys.stderr.isatty() else progress
     # The missions are independent: one process each, up to one per core.
-    with _pool(len(flights)) as pool:
-        # Not on a terminal (a log, CI): plain lines every 30 s instead of a silent minute.
-        lines = "lines" if progress is None and not sys.stderr.isatty() else progress
+    with _pool(len(flights), workers) as pool:
         futures = [(step, spec, pool.submit(_fly, spec, results_dir, lines))
                    for step, spec in flights]
         for step, spec, future in futures:
@@ -308,7 +313,8 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
         step = f"[{i}/{total}] notebook {nb.name} ({nb.title})"
         log(f"{step} ...")
         t0 = time.perf_counter()
-        execute_notebook(notebook_path(nb.name), executed / f"{nb.name}.ipynb", params)
+        with _heartbeat(_Lines(log, f"{step}: "), "executing"):
+            execute_notebook(notebook_path(nb.name), executed / f"{nb.name}.ipynb", params)
         timings[nb.name] = time.perf_counter() - t0
         missing = [f for f in nb.outputs if not (figures / f).is_file()]
         if missing:
@@ -325,13 +331,18 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
                 f"{int(np.sum(reached >= 0))}/{len(reached)} targets reached; its figures "
                 "show the partial mission")
 
+    elapsed = time.perf_counter() - start
     if notebooks is None and max_steps is None and not quick:
         from .evidence import stamp
+        from .simulation import run_metadata
 
+        # What this machine measured, apart from the figures (expected to change).
+        text = json.dumps({"wall_time_s": elapsed, "stages_s": timings,
+                           "meta": run_metadata()}, indent=1, default=str) + "\n"
+        (figures / "timings.json").write_text(text)
         # Last, once every figure is in place: this set is what this code makes.
         stamp(figures, "python -m paper_repro reproduce" + (
             f" --preset {preset}" if preset not in (None, "paper") else ""))
-    elapsed = time.perf_counter() - start
     log(f"done in {duration(elapsed)}: {len(outputs)} file(s) in {_show(figures)}, executed "
         f"notebooks in {_show(executed)}")
     return ReproduceReport(result_dirs, simulated, ran, figures, outputs, timings, elapsed)
@@ -343,56 +354,83 @@ def _fly(spec: RunSpec, results_dir, progress) -> tuple[Path, float]:
     ``progress`` : as for :func:`~paper_repro.simulation.simulate`, or ``"lines"``: plain
     progress lines, and while nothing else is printed (building the controller compiles C on
     a new machine) a line every :data:`HEARTBEAT_S` that says the worker is alive."""
-    import threading
-
     t0 = time.perf_counter()
     if progress != "lines":
         out, _ = ensure_result(spec, results_dir, force=True, progress=progress)
         return out, time.perf_counter() - t0
-    lines, done = _Lines(f"{spec.name}: "), threading.Event()
-
-    def heartbeat():
-        while not done.wait(HEARTBEAT_S / 4):
-            if time.perf_counter() - lines.last >= HEARTBEAT_S:
-                lines(f"  {duration(time.perf_counter() - t0)} elapsed (building the "
-                      "controller, or between progress lines)")
-
-    threading.Thread(target=heartbeat, daemon=True).start()
-    try:
+    lines = _Lines(_print_now, f"{spec.name}: ")
+    with _heartbeat(lines, "building the controller, or between progress lines"):
         out, _ = ensure_result(spec, results_dir, force=True, progress=lines)
-    finally:
-        done.set()
     return out, time.perf_counter() - t0
 
 
 HEARTBEAT_S = 20.0
-"""s: the longest a flying worker stays silent."""
+"""s: the longest a stage of ``reproduce`` stays silent."""
 
 
 class _Lines:
-    """Prints a line at once, after ``prefix`` (the run's name: two flights print at once),
-    and remembers when (for the heartbeat)."""
+    """``log`` a line at once, after ``prefix`` (the run's name: two flights print at once),
+    and remember when (for the heartbeat)."""
 
-    def __init__(self, prefix: str = ""):
-        self.prefix, self.last = prefix, time.perf_counter()
+    def __init__(self, log, prefix: str = ""):
+        self.log, self.prefix, self.last = log, prefix, time.perf_counter()
 
     def __call__(self, line: str) -> None:
         self.last = time.perf_counter()
-        print(f"{self.prefix}{line.strip()}", flush=True)
+        text = f"{self.prefix}{line.strip()}"
+        self.log(text)
 
 
-def _pool(flights: int):
-    """Worker processes for ``flights`` missions: one per flight, at most one per core (a
-    process of its own even for one flight, so every mission is flown the same way)."""
+def _print_now(line: str) -> None:
+    print(line, flush=True)
+
+
+@contextlib.contextmanager
+def _heartbeat(lines: _Lines, what: str):
+    """While the block runs, a line through ``lines`` whenever it has been silent for
+    :data:`HEARTBEAT_S`."""
+    import threading
+
+    t0, done = time.perf_counter(), threading.Event()
+
+    def beat():
+        while not done.wait(HEARTBEAT_S / 4):
+            if time.perf_counter() - lines.last >= HEARTBEAT_S:
+                lines(f"  {duration(time.perf_counter() - t0)} elapsed ({what})")
+
+    thread = threading.Thread(target=beat, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()
+
+
+def _pool(flights: int, workers: int | None):
+    """Where the missions fly: ``workers`` processes (default: one per flight, at most one
+    per core), forked so that a worker sees this process's modules as they are; or, with
+    ``workers=0``, this process, one flight after the other."""
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures import Executor, Future, ProcessPoolExecutor
 
-    workers = max(1, min(flights, os.cpu_count() or 1))
-    return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+    class _Here(Executor):
+        def submit(self, fn, /, *args, **kwargs):
+            future = Future()
+            future.set_result(fn(*args, **kwargs))
+            return future
+
+    if workers == 0:
+        return _Here()
+    n = workers or max(1, min(flights, os.cpu_count() or 1))
+    return ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork"))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``python -m paper_repro reproduce``."""
+    parser.add_argument("--workers", type=non_negative_int, default=None,
+                        help="processes that fly the missions (default: one per mission, at "
+                             "most one per core; 0: one after the other in this process)")
     parser.add_argument("--quick", action="store_true",
                         help=f"short mission ({QUICK_STEPS} steps per metric) into "
                              "figures/quick/ for a fast look")
@@ -430,7 +468,8 @@ def main(args: argparse.Namespace) -> int:
     reproduce(quick=args.quick, max_steps=args.max_steps, force=args.force,
               notebooks=args.notebooks, config=config, figures_dir=args.figures_dir,
               progress=False if args.no_progress else None,
-              log=lambda line: print(line, flush=True), preset=args.preset)
+              log=lambda line: print(line, flush=True), preset=args.preset,
+              workers=args.workers)
     return 0
 
 

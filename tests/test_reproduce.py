@@ -125,7 +125,7 @@ def test_reproduce_simulates_missing_runs_then_only_redraws_byte_identical_figur
         tmp_path, fake_simulation):
     kw = dict(quick=True, notebooks=["02_projections", "06_summary"],
               results_dir=tmp_path / "results", figures_dir=tmp_path / "figures",
-              executed_dir=tmp_path / "executed", progress=False)
+              executed_dir=tmp_path / "executed", progress=False, workers=0)
     first_log, second_log = [], []
     first = R.reproduce(log=first_log.append, **kw)
     snapshot = {p.name: p.read_bytes() for p in first.outputs}
@@ -205,3 +205,21 @@ def test_cli_rejects_unknown_notebook_names(capsys):
     assert main(["reproduce", "--notebooks", "99_nothing"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("error:") and "99_nothing" in err and "\n" not in err
+
+
+def test_a_silent_stage_still_prints_a_line_every_heartbeat(monkeypatch):
+    """No stage of reproduce is silent for longer than HEARTBEAT_S (here 0.2 s)."""
+    import time
+
+    monkeypatch.setattr(R, "HEARTBEAT_S", 0.2)
+    stamps = []
+    lines = R._Lines(lambda line: stamps.append((time.perf_counter(), line)), "stage: ")
+    with R._heartbeat(lines, "testing"):
+        time.sleep(0.5)
+        lines("a progress line")  # resets the clock
+        time.sleep(0.5)
+    beats = [line for _, line in stamps if "elapsed (testing)" in line]
+    assert len(beats) >= 2 and all(line.startswith("stage: ") for _, line in stamps)
+    # The progress line reset the clock: no beat within the heartbeat after it.
+    after = [t for t, line in stamps if line == "stage: a progress line"][0]
+    assert all(t - after >= 0.2 for t, line in stamps if t > after)
