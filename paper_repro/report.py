@@ -145,14 +145,29 @@ def timeline() -> str:
 
 
 def tuning() -> str:
-    """``figures/tuning/tuning_heldout_summary.csv``: the held-out passages per set-up."""
-    table = pd.read_csv(paths.figures_dir() / "tuning" / "tuning_heldout_summary.csv")
+    """``figures/tuning/``: the front (``tuning_pareto.csv``) and the held-out passages per
+    set-up (``tuning_heldout_summary.csv``), then the chosen set-up against the printed one,
+    scene by scene."""
+    folder = paths.figures_dir() / "tuning"
+    front = pd.read_csv(folder / "tuning_pareto.csv")
+    rows = [[f"{r.number}", f"{r.eta:g} m", f"{r.sigma:g} m", f"{r.d_min:g} m²",
+             f"{r.kappa:g}", f"{r.mu:g}", f"{r.delta:g}", _share(r.hf_energy_fraction),
+             f"{r.time_to_complete_s:.1f} s"] for r in front.itertuples()]
+    parts = ["*The front (training passages)*\n\n" + _markdown(
+        ["trial", "η", "σ", "d_min", "κ", "μ", "δ", "power > 5 Hz", "time to complete"], rows)]
+    table = pd.read_csv(folder / "tuning_heldout_summary.csv")
     rates = table[table["kind"] == "rate"].set_index(["setup", "event"])
     setups = list(dict.fromkeys(rates.index.get_level_values(0)))
     rows = [[label, *(_rate(rates.loc[(s, event)]) for s in setups)]
             for event, label in (("completed", "completed"), ("collision", "collision"),
-                                 ("stalled", "stalled"))]
-    return _markdown(["held-out passages", *setups], rows)
+                                 ("stalled", "stalled"), ("step_limit", "step limit"))]
+    parts.append("*Held-out passages*\n\n" + _markdown(["", *setups], rows))
+    paired = table[(table["kind"] == "paired") & (table["setup"] == "best_chattering")]
+    paired = paired.rename(columns={"median_printed": "median_smooth",
+                                    "median_best_chattering": "median_euclidean"})
+    parts.append("*best_chattering against printed, per held-out scene*\n\n"
+                 + _paired(paired, "printed", "best_chattering"))
+    return "\n\n".join(parts)
 
 
 def regeneration() -> str:
@@ -247,7 +262,7 @@ def _markdown(header: list[str], rows: list[list]) -> str:
 
 
 def _share(x: float) -> str:
-    return f"{100 * x:.0f} %"
+    return f"{100 * x:.1f} %" if 0 < x < 0.01 else f"{100 * x:.0f} %"
 
 
 def _rate(r) -> str:
@@ -274,6 +289,8 @@ def _num(x: float) -> str:
 
 
 def _paired(table: pd.DataFrame, a: str, b: str) -> str:
+    """Paired effects (``analysis.paired``; its columns ``median_smooth`` and
+    ``median_euclidean`` hold the medians of ``a`` and ``b``)."""
     rows = []
     for r in table.itertuples():
         effect = (f"×{_num(r.median_effect)} [{_num(r.low)}, {_num(r.high)}]"
