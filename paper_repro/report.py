@@ -97,16 +97,25 @@ def sensor_noise() -> str:
 
 
 def sensing_window() -> str:
-    """``figures/studies/sensing_window/sensing_window_summary.csv``, one row per width."""
-    table = pd.read_csv(paths.figures_dir() / "studies" / "sensing_window" /
-                        "sensing_window_summary.csv")
-    rows = [[f"{r.window_m:g} m", f"{r.runs}", f"{r.scan_changes:g}", _share(r.jump_share),
-             f"{1e3 * r.du_at_changes_N:.3g} / {1e3 * r.du_around_changes_N:.3g} mN",
-             f"{r.min_clearance_median_m:.3f} m", f"{r.tv_u_rate_N_per_s:.3g} N/s"]
-            for r in table.itertuples()]
-    return _markdown(["window w", "passages", "changes of the visible set (median)",
-                      "share of changes with a step > 10 mN", "median |Δu| at / around",
-                      "min clearance (median)", "TV of u (median)"], rows)
+    """``figures/studies/sensing_window/``: the paper mission with and without the window
+    (``sensing_window_mission.csv``), then the passages, one row per width
+    (``sensing_window_summary.csv``)."""
+    folder = paths.figures_dir() / "studies" / "sensing_window"
+    mission = pd.read_csv(folder / "sensing_window_mission.csv")
+    rows = [["paper mission", f"{r.window_m:g} m", f"{r.scan_changes:g}",
+             _share(r.scan_change_jump_share),
+             f"p90 {1e3 * r.du_scan_change_p90_N:.3g} / {1e3 * r.du_around_changes_p90_N:.3g} mN",
+             f"{r.mannwhitney_p:.2g}", f"{r.min_clearance_m:.3f} m", "—"]
+            for r in mission.itertuples()]
+    table = pd.read_csv(folder / "sensing_window_summary.csv")
+    rows += [[f"{r.runs} random passages (median)", f"{r.window_m:g} m", f"{r.scan_changes:g}",
+              _share(r.jump_share),
+              f"{1e3 * r.du_at_changes_N:.3g} / {1e3 * r.du_around_changes_N:.3g} mN", "",
+              f"{r.min_clearance_median_m:.3f} m", f"{r.tv_u_rate_N_per_s:.3g} N/s"]
+             for r in table.itertuples()]
+    return _markdown(["run", "window w", "changes of the visible set",
+                      "share with a step > 10 mN", "|Δu| at / around", "Mann–Whitney p",
+                      "min clearance", "TV of u"], rows)
 
 
 def moving_obstacles() -> str:
