@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from paper_repro import Config, NMPCParams
+from paper_repro import Config, NMPCParams, metrics
 from paper_repro import reproduce as R
 from paper_repro import study as S
 from paper_repro.paths import notebooks_dir
@@ -121,7 +121,11 @@ def test_notebook_executes_with_quick_parameters(name, tiny_results, tmp_path):
         assert (figures / f).is_file() and (figures / f).stat().st_size > 0, f
     if name == "06_summary":
         table = pd.read_csv(figures / "summary.csv", index_col="run")
-        assert list(table.index) == ["paper/smooth", "paper/euclidean"]
+        timings = pd.read_csv(figures / "summary_timings.csv", index_col="run")
+        assert list(table.index) == list(timings.index) == ["paper/smooth", "paper/euclidean"]
+        # What the machine measured lives apart from what the flight determines.
+        assert not set(metrics.TIMING_COLUMNS) & set(table.columns)
+        assert set(timings.columns) == set(metrics.TIMING_COLUMNS)
         assert (table["steps"] == TINY_STEPS).all()
         # Each row against its saved result, recounted here: 1.5 s from the start, far from
         # every cloud, every solve converges and no target is reached.
@@ -133,8 +137,8 @@ def test_notebook_executes_with_quick_parameters(name, tiny_results, tmp_path):
             assert np.isnan(row["mission_time_s"]) and np.isnan(row["time_to_complete_s"])
             assert row["min_clearance_m"] == pytest.approx(saved.clearance.min(), rel=1e-5)
             assert row["min_clearance_m"] > 3.0 and not row["collision"]
-            assert row["solve_median_ms"] == pytest.approx(
-                1e3 * np.median(saved.solve_time), rel=1e-5)
+            assert timings.loc[run, "solve_median_ms"] == pytest.approx(
+                1e3 * np.median(saved.solve_time), rel=1e-3)
             assert row["tv_u_N"] == pytest.approx(np.abs(np.diff(saved.u, axis=0)).sum(),
                                                   rel=1e-5)
 
