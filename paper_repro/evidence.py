@@ -248,10 +248,12 @@ def stamped_hash(folder) -> str | None:
 
 
 def stale_evidence() -> list[str]:
-    """The evidence sets whose stamp is missing or differs from the golden hash."""
+    """The evidence sets present in ``figures/`` whose stamp is missing or differs from the
+    golden hash (a set that is not there is missing, not stale: it shows nothing)."""
     current = golden_hash()
     return [name or "figures" for name in EVIDENCE_SETS
-            if stamped_hash(paths.figures_dir() / name) != current]
+            if (paths.figures_dir() / name).is_dir()
+            and stamped_hash(paths.figures_dir() / name) != current]
 
 
 def main(args) -> int:

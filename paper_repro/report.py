@@ -189,6 +189,8 @@ def regeneration() -> str:
     rows = []
     for name in EVIDENCE_SETS:
         folder = paths.figures_dir() / name
+        if not folder.is_dir():
+            continue
         stamp, timing = folder / "evidence.json", folder / "timings.json"
         made_by = json.loads(stamp.read_text())["made_by"] if stamp.is_file() else "—"
         wall = "—"

@@ -61,6 +61,13 @@ def test_every_committed_evidence_set_was_made_with_the_current_golden_flights()
                        "(README, 'Regenerating the evidence')")
 
 
+def test_the_paper_evidence_is_there():
+    """The paper's figures, the preset that matches its clock and the fidelity table exist
+    (a missing set is not stale, so this is asked on its own)."""
+    for name in ("", "presets/paper-timeline", "fidelity"):
+        assert (paths.figures_dir() / name / "evidence.json").is_file(), name
+
+
 def test_every_evidence_folder_is_listed():
     """A folder of figures/ that holds a stamp, or a study table, is a listed evidence set."""
     root = paths.figures_dir()
