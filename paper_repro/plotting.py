@@ -582,7 +582,7 @@ def plot_sweep(settings, x: str, fixed: dict, columns=(
         ("min_clearance_m", "min clearance, m", False),
         ("time_to_complete_s", "passage time, s", False),
         ("stalled_rate", "stall rate", False),
-        ("solve_median_ms", "solve time, median per run, ms", False))):
+        ("completed_rate", "completion rate", False))):
     """Medians over scenes (bands: their 95 % intervals) of the smooth runs against ``x``
     (``"eta"`` or ``"sigma"``) with the other parameter held at ``fixed``; the Euclidean
     baseline as a dashed line (:func:`paper_repro.analysis.by_setting`)."""

@@ -184,6 +184,14 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, tmp_path
         assert crossing["t_closest_s"].between(7.0, 10.0).all()
         paired = pd.read_csv(figures / "moving_obstacles_paired.csv")
         assert set(paired["prediction"]) == {"oracle", "kalman"} and (paired["scenes"] == 2).all()
+    elif name == "11_timeline":
+        from paper_repro.timeline import CANDIDATES, QUICK_STEPS
+
+        flights = pd.read_csv(figures / "timeline_flights.csv")
+        assert list(flights["candidate"]) == list(CANDIDATES)
+        assert (flights["steps"] == QUICK_STEPS).all()  # read from the quick study's table
+        levers = pd.read_csv(figures / "timeline_levers.csv")
+        assert set(levers["lever"]) == {"T", "R", "rate weights", "N", "prediction_ts"}
     else:
         rates = pd.read_csv(figures / "sensing_window_rates.csv")
         assert set(rates["window_m"]) == set(S.SENSING_WINDOWS) and (rates["n"] == 2).all()
