@@ -12,9 +12,10 @@ only where it stops at its iteration limit (the Euclidean metric): ``reference``
 as a failed solve and applies the previous plan, shifted; ``reference-iterate`` applies the
 iterate it stopped at. Per (window, solver) it prints the chattering measures after the
 first :data:`SETTLE_STEPS` (total variation of u per second, share of thrust power above
-5 Hz, sign changes of Δu, max |Δu|, steps with |Δu| > 1 N), the minimum clearance, the largest position deviation from
-``reference``'s trajectory, IPOPT's unconverged solves and the median / p99 solve time, then
-the ratios to ``reference``. Every flight is saved in ``results/fidelity/<window>/<solver>/``
+5 Hz, sign changes of Δu, max |Δu|, steps with |Δu| > 1 N), the minimum clearance, the
+largest position deviation from the IPOPT loop's trajectory, IPOPT's unconverged solves and
+the median / p99 solve time, then the ratios to the IPOPT loop that applies what IPOPT
+returns. Every flight is saved in ``results/fidelity/<window>/<solver>/``
 and re-used; the flight columns go to ``figures/fidelity/fidelity.csv`` (byte-stable), the
 solve times to ``figures/fidelity/fidelity_timings.csv`` (this machine's). Flights run in
 parallel, one process per core (``--jobs``).
