@@ -4,10 +4,11 @@
 Section V. Under it the paper mission lasts ≈1,390 s of flight, where the paper's time axes
 (Figs. 4–8) span 0–500 s. :mod:`paper_repro.timeline` shows why (the terminal equality
 x_N = x_a over N·h = 0.35 s makes the lateral approach an exponential with τ ≈ 155 s) and
-which single reading of the printed numbers gives the paper's clock; notebook
-``11_timeline`` flies the candidates. ``paper-timeline`` is the smallest departure from the
-printed parameters that brings the obstacle mission within 10 % of 500 s and stays safe:
-the horizon N = 43 instead of 35 (see :data:`PRESETS` and the README).
+which single reading of the printed numbers gives the paper's clock; the timeline study
+(``python -m paper_repro study timeline``, notebook ``11_timeline``) flies the candidates.
+``paper-timeline`` is the smallest departure from the printed parameters that brings the
+obstacle mission within 10 % of 500 s and stays safe: the horizon N = 43 instead of 35 (see
+:data:`PRESETS` and the README).
 
 Why N = 43. The clock is set by the prediction span N·h (τ_lat ∝ (N·h)^−5 near the printed
 point), so three single changes reach it; flown on the ``paper`` scene with its clouds:

@@ -6,9 +6,12 @@ Two stages, each printed with its duration:
    Runs go through the run cache (:mod:`paper_repro.runs`, shared with ``study``): a result
    lives in ``results/<run>-<hash>/``, the hash covering the full configuration, the step
    limit and the scene's fingerprint, so a second call only redraws; a changed parameter (the
-   solver choice included) gives a new folder. The hash covers the configuration, not the
-   code: after a change to the model or a solver, pass ``--force``.
-2. **notebooks** — every notebook in ``notebooks/`` is executed with papermill, its parameters
+   solver choice included) gives a new folder. The hash also covers the golden hash
+   (:mod:`paper_repro.evidence`), so a change of code that moves a flight retires every
+   cached run once the golden flights are written again. The two missions fly in parallel,
+   one process each.
+2. **notebooks** — every notebook of :data:`NOTEBOOKS` (the study notebooks run with their
+   studies, ``python -m paper_repro study NAME``) is executed with papermill, its parameters
    checked against the ones the notebook declares (a wrong name raises ``ValueError``), into
    the git-ignored ``notebooks/executed/``. The notebooks write ``figures/*.pdf``, ``*.png``,
    ``flight.gif`` and ``summary.csv``.
@@ -40,8 +43,9 @@ Regenerate every figure of the paper and the summary table.
 
 1. simulate: the paper mission once per metric (smoothed, Euclidean), cached in
    results/<run>-<config hash>/, so a second call only redraws;
-2. notebooks: every notebook of notebooks/ executed with papermill (parameters checked)
-   into notebooks/executed/; they write figures/*.pdf, *.png, flight.gif and summary.csv.
+2. notebooks: every figure notebook executed with papermill (parameters checked) into
+   notebooks/executed/; they write figures/*.pdf, *.png, flight.gif and summary.csv.
+   Last, figures/evidence.json records the golden flights the set was made with.
 
 --quick flies a short mission and writes into figures/quick/ (git-ignored)."""
 
