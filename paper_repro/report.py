@@ -39,7 +39,8 @@ def summary() -> str:
 def fidelity() -> str:
     """``figures/fidelity/fidelity.csv``: every window, every solver."""
     table = pd.read_csv(paths.figures_dir() / "fidelity" / "fidelity.csv")
-    rows = [[r.window, r.solver, f"{r.tv_per_s:,.3g}", _ratio(r.tv_per_s_ratio),
+    rows = [[r.window, "rti (default)" if r.solver == "rti" else r.solver, _num(r.tv_per_s),
+             _ratio(r.tv_per_s_ratio),
              f"{r.hf_share:.2f}", f"{r.sign_changes:,}", f"{r.max_du:.2f}",
              f"{r.jumps_1N}", f"{r.min_clearance_m:.3f}", _metres(r.deviation_m),
              f"{r.iteration_limit}"] for r in table.itertuples()]
@@ -292,7 +293,9 @@ def _ratio(x: float) -> str:
 def _metres(x: float) -> str:
     if pd.isna(x) or x == 0:
         return "—"
-    return f"{1e3 * x:.2g} mm" if x < 0.01 else f"{100 * x:.2g} cm"
+    if x < 0.01:
+        return f"{1e3 * x:.2g} mm"
+    return f"{100 * x:.2g} cm" if x < 1 else f"{x:.2g} m"
 
 
 def _num(x: float) -> str:
