@@ -227,6 +227,11 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     scene = scene if scene is not None else make_scene(sim.scenario, sim.seed)
     passage = sim.kind == "passage"
     check_setup(cfg, scene)  # an inconsistent mission fails here, before anything is built
+    if initial_state is not None:
+        start = np.array(initial_state, dtype=float)
+        if start.shape != (N_STATES,) or not np.isfinite(start).all():
+            raise ValueError(f"initial_state must be a finite ({N_STATES},) state, got "
+                             f"{np.shape(initial_state)}")
     hazards = setup_hazards(cfg, scene)
     for line in hazards["warnings"]:
         warnings.warn(f"{scene.name}: {line}", SetupHazardWarning, stacklevel=2)
@@ -250,10 +255,7 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     if initial_state is None:
         x, _ = equilibrium(scene.start, 0.0, cfg.quadrotor)
     else:
-        x = np.array(initial_state, dtype=float)
-        if x.shape != (N_STATES,) or not np.isfinite(x).all():
-            raise ValueError(f"initial_state must be a finite ({N_STATES},) state, got shape "
-                             f"{x.shape}")
+        x = start.copy()
     log = _Log(sim.max_steps)
     reached = np.full(len(targets), -1)
     target_index, slow, outcome = 0, 0, "step_limit"

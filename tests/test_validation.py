@@ -355,3 +355,12 @@ def test_spurious_returns_lie_in_the_sphere_and_go_to_the_nearest_region():
     assert np.mean(counts) == pytest.approx(rate, abs=4 * math.sqrt(rate / scans))
     # uniform in volume: P(r ≤ r_s/2) = 1/8
     assert np.mean(radii <= r_s / 2) == pytest.approx(1 / 8, abs=0.03)
+
+
+@pytest.mark.parametrize("state", [np.zeros(11), np.full(12, np.nan), [[0.0] * 12]])
+def test_initial_state_is_checked_before_anything_is_built(state, monkeypatch):
+    import paper_repro.simulation as sim
+
+    monkeypatch.setattr(sim, "make_controller", lambda *a, **k: pytest.fail("built"))
+    with pytest.raises(ValueError, match="initial_state must be a finite \\(12,\\) state"):
+        sim.simulate(max_steps=1, progress=False, initial_state=state)
