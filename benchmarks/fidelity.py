@@ -34,12 +34,13 @@ import pandas as pd
 from _table import print_table  # benchmarks/_table.py (the script's folder)
 
 from paper_repro import Config
-from paper_repro.controllers import make_controller
-from paper_repro.evidence import stamp
-from paper_repro.metrics import chattering_metrics
+from paper_repro.analysis.metrics import chattering_metrics
+from paper_repro.evidence.golden import stamp
 from paper_repro.paths import figures_dir, results_dir
-from paper_repro.simulation import SimulationResult, simulate
-from paper_repro.study import passage_config
+from paper_repro.sim.loop import simulate
+from paper_repro.sim.result import SimulationResult
+from paper_repro.solvers.factory import make_controller
+from paper_repro.studies.catalogue import passage_config
 
 SOLVERS = {  # name -> (NMPCParams.solver, controller options)
     "reference": ("reference", {}),  # IPOPT; a solve stopped at the iteration limit failed

@@ -2,7 +2,7 @@
 
     python benchmarks/ground_robot.py --steps 500
 
-Flies the planar L-wall scene (:func:`paper_repro.ground_robot.planar_scene`) with the smooth
+Flies the planar L-wall scene (:func:`paper_repro.world.planar.planar_scene`) with the smooth
 and the Euclidean metric, each with IPOPT (the reference), the real-time iteration (one SQP
 step per instant) and two SQP steps, then prints per run: median / p99 wall time of one
 controller call in ms, failed solves, the largest position deviation from IPOPT's path, the
@@ -18,9 +18,10 @@ import argparse
 import numpy as np
 from _table import print_table  # benchmarks/_table.py (the script's folder)
 
-from paper_repro.controllers import make_controller
-from paper_repro.ground_robot import fly, planar_scene, unicycle_config, unicycle_model
-from paper_repro.metrics import chattering_metrics
+from paper_repro.analysis.metrics import chattering_metrics
+from paper_repro.solvers.factory import make_controller
+from paper_repro.vehicles.unicycle import unicycle_config, unicycle_model
+from paper_repro.world.planar import fly, planar_scene
 
 VARIANTS = {"reference": ("reference", {}), "rti": ("rti", {"max_iter": 1}),
             "sqp-2": ("rti", {"max_iter": 2})}

@@ -13,9 +13,10 @@ import argparse
 import dataclasses
 
 from paper_repro import Config, paths
-from paper_repro import study as S
-from paper_repro.config import BarrierParams
-from paper_repro.evidence import stamp
+from paper_repro import studies as S
+from paper_repro.config import PREDICTIONS, BarrierParams
+from paper_repro.evidence.golden import stamp
+from paper_repro.studies.catalogue import Study
 
 
 def main() -> None:
@@ -30,9 +31,9 @@ def main() -> None:
         dataclasses.replace(s, name=s.name.replace("crossing-", "crossing-definition-"))
         for s in S.moving_obstacles(scenes=args.scenes, base=base).specs
         if dict(s.labels)["metric"] == "smooth")
-    study = S.Study("moving_obstacles_definition", specs,
+    study = Study("moving_obstacles_definition", specs,
                     "random crossings, smooth metric, barrier in Definition 1's form (c = δ), "
-                    f"prediction in {S.PREDICTIONS}, {args.scenes} passages")
+                    f"prediction in {PREDICTIONS}, {args.scenes} passages")
     result = S.run_study(study, out=paths.figures_dir() / "studies" / study.name,
                          workers=args.workers, runs_dir=paths.results_dir() / "runs",
                          force=args.force)

@@ -6,7 +6,8 @@ Flies the mission once per window width w (``DistanceParams.window``; 0 is the p
 cut-off), saves each result in ``DIR/w<w>/``, and prints per width: the steps at which the
 number of visible points changed ("events"), the median and 90th percentile of |Δu| (the
 largest of the four rotors' thrust steps, N) at events and at the other steps within 0.2 s of
-an event (the same phase of flight; :func:`paper_repro.metrics.scan_change_steps`), the share
+an event (the same phase of flight; :func:`paper_repro.analysis.metrics.scan_change_steps`), the
+share
 of events with a step above 0.01 N, the Mann-Whitney p-value of "|Δu| at events and around
 them come from the same distribution", the minimum clearance and the mission's outcome. With
 ``--from-saved`` it only reads the results in DIR. The last line is the table as JSON.
@@ -24,8 +25,9 @@ from _table import print_table  # benchmarks/_table.py (the script's folder)
 from scipy.stats import mannwhitneyu
 
 from paper_repro import Config
-from paper_repro.metrics import scan_change_steps
-from paper_repro.simulation import SimulationResult, simulate
+from paper_repro.analysis.metrics import scan_change_steps
+from paper_repro.sim.loop import simulate
+from paper_repro.sim.result import SimulationResult
 
 
 def row(width: float, result) -> dict:

@@ -22,8 +22,8 @@ import numpy as np
 from _table import print_table  # benchmarks/_table.py (the script's folder)
 
 from paper_repro import Config
-from paper_repro.controllers import make_controller
-from paper_repro.simulation import simulate
+from paper_repro.sim.loop import simulate
+from paper_repro.solvers.factory import make_controller
 
 VARIANTS = {  # name -> (solver, controller options)
     "reference": ("reference", {}),

@@ -2,7 +2,7 @@
 
     python benchmarks/throughput.py --steps 20000 --scenario paper
 
-Flies ``paper_repro.simulation.simulate`` for ``--steps`` steps (or until the mission ends) on
+Flies ``paper_repro.sim.loop.simulate`` for ``--steps`` steps (or until the mission ends) on
 one core, then two such flights at once in two processes (``multiprocessing``, spawn). One
 step is everything the loop does: LiDAR scan, controller, plant integration, logging. The
 compile caches are warmed and the controllers built before any timing; each flight starts
@@ -38,12 +38,12 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from paper_repro import Config  # noqa: E402
-from paper_repro import simulation as sim_module  # noqa: E402
-from paper_repro.controllers import make_controller  # noqa: E402
-from paper_repro.model import plant_step  # noqa: E402
-from paper_repro.plant import Plant  # noqa: E402
-from paper_repro.simulation import simulate  # noqa: E402
+from paper_repro import Config
+from paper_repro.sim import loop as sim_module
+from paper_repro.sim.loop import simulate
+from paper_repro.sim.plant import Plant
+from paper_repro.solvers.factory import make_controller
+from paper_repro.vehicles.quadrotor import plant_step
 
 WARMUP_STEPS = 50
 

@@ -1,40 +1,71 @@
 """paper_repro: Point-to-Cloud NMPC with Smooth Avoidance Constraints, reproduced.
 
-Modules
--------
-config      every default parameter (frozen dataclasses)
-model       quadrotor of Table I: continuous dynamics, RK4 prediction, plant integration
-distance    smoothed point-to-cloud distance D_{η,σ}, projection, Euclidean baseline
-scene       workspace, Halton point-cloud regions, virtual LiDAR (optionally imperfect)
-safety      checks of a mission before it flies, and the unsafe set-ups it reports
+The paper's core, which imports nothing above it:
+
+============  ===========================================================================
+``config``    every default parameter (frozen dataclasses), and ``presets`` of them
+``vehicles``  the model interface and the vehicles: the quadrotor of Table I, a unicycle
+``problem``   the smoothed distance D_{η,σ} and problem (21), the one description
+``solvers``   IPOPT (the reference) and the real-time iteration, both reading problem (21)
+============  ===========================================================================
+
+Around it, each layer importing only the layers above it in this list:
+
+============  ===========================================================================
+``world``     shapes, scenes, random scenes, motion, the LiDAR, the region tracker
+``sim``       the closed loop for any vehicle, its result, the plant, set-up checks
+``analysis``  metrics of a run, statistics of a study, the mission's clock
+``studies``   the run cache, the catalogue of studies, the engine on Dask, the tuning
+``plots``     figures, drawn from saved results
+``evidence``  golden flights, the reproduction pipeline, the README's tables
+``cli``       ``python -m paper_repro COMMAND``
+============  ===========================================================================
+
+The names below are the ones the README and the notebooks use.
 """
 
-from .config import (
-                     BarrierParams,
-                     Config,
-                     DistanceParams,
-                     NMPCParams,
-                     QuadrotorParams,
-                     SensorParams,
-                     SimulationParams,
-)
-from .distance import (
-                     CloudWeights,
-                     clearance,
-                     euclidean_distance,
-                     smooth_distance,
-                     smooth_distance_gradient,
-                     smooth_projection,
-)
-from .model import continuous_dynamics, equilibrium, plant_step, rk4_discretisation
-from .scene import Lidar, Scene, make_scene
+from importlib.metadata import version
 
-__version__ = "0.1.0"
+from paper_repro.config import (
+    BarrierParams,
+    Config,
+    DistanceParams,
+    NMPCParams,
+    QuadrotorParams,
+    SensorParams,
+    SimulationParams,
+)
+from paper_repro.problem.distance import (
+    CloudWeights,
+    clearance,
+    euclidean_distance,
+    smooth_distance,
+    smooth_distance_gradient,
+    smooth_projection,
+)
+from paper_repro.sim.loop import Faults, simulate
+from paper_repro.sim.result import SimulationResult
+from paper_repro.solvers.factory import make_controller
+from paper_repro.studies.catalogue import make_study
+from paper_repro.studies.engine import load_table, run_study
+from paper_repro.vehicles.base import Equilibria, VehicleModel
+from paper_repro.vehicles.quadrotor import (
+    continuous_dynamics,
+    equilibrium,
+    plant_step,
+    rk4_discretisation,
+)
+from paper_repro.world.lidar import Lidar
+from paper_repro.world.scenarios import make_scene
+from paper_repro.world.scene import Region, Scene
+
+__version__ = version("paper_repro")
 
 __all__ = [
-    "BarrierParams", "CloudWeights", "Config", "DistanceParams", "Lidar", "NMPCParams",
-    "QuadrotorParams", "Scene", "SensorParams", "SimulationParams", "clearance",
-    "continuous_dynamics", "equilibrium", "euclidean_distance", "make_scene", "plant_step",
-    "rk4_discretisation",
+    "BarrierParams", "CloudWeights", "Config", "DistanceParams", "Equilibria", "Faults",
+    "Lidar", "NMPCParams", "QuadrotorParams", "Region", "Scene", "SensorParams",
+    "SimulationParams", "SimulationResult", "VehicleModel", "clearance", "continuous_dynamics",
+    "equilibrium", "euclidean_distance", "load_table", "make_controller", "make_scene",
+    "make_study", "plant_step", "rk4_discretisation", "run_study", "simulate",
     "smooth_distance", "smooth_distance_gradient", "smooth_projection",
 ]

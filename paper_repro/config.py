@@ -13,6 +13,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from paper_repro.validation import (
+    is_number,
+    require_choice,
+    require_int,
+    require_ordered,
+    require_positive,
+    require_range,
+    require_vector,
+)
+
 
 @dataclass(frozen=True)
 class QuadrotorParams:
@@ -38,9 +48,9 @@ class QuadrotorParams:
 
     def __post_init__(self):
         for name in ("mass", "arm", "gravity", "thrust_coefficient", "drag_coefficient"):
-            _require_positive(name, getattr(self, name))
+            require_positive(name, getattr(self, name))
         if not (isinstance(self.inertia, (tuple, list)) and len(self.inertia) == 3 and all(
-                _is_number(i) and math.isfinite(i) and i > 0 for i in self.inertia)):
+                is_number(i) and math.isfinite(i) and i > 0 for i in self.inertia)):
             raise ValueError(
                 f"inertia must be three finite values > 0 (kg·m²), got {self.inertia!r}")
 
@@ -65,7 +75,8 @@ class DistanceParams:
     sigma : σ, m, *paper* 0.8. Regularisation scale of the weights W_σ, eq. (9).
     metric : ``"smooth"`` (D_{η,σ}) or ``"euclidean"`` (½·min_j‖y − a_j‖², the baseline).
     window : w, m, *chosen* 0 (off: the paper's hard cut-off at r_s). Width of the smooth
-        sensing window (:func:`paper_repro.distance.sensing_window`): a visible point at range
+        sensing window (:func:`paper_repro.problem.distance.sensing_window`): a visible point at
+        range
         r counts with weight ψ(r), 1 inside r_s − w, 0 at r_s, C∞ in between, in the
         centroid, W and V of the smooth metric. A point then enters and leaves D continuously
         as it crosses the LiDAR sphere. Must be < r_s (``simulation.lidar_range``); the
@@ -78,10 +89,10 @@ class DistanceParams:
     window: float = 0.0
 
     def __post_init__(self):
-        _require_positive("eta", self.eta)
-        _require_positive("sigma", self.sigma)
-        _require_choice("metric", self.metric, ("smooth", "euclidean"))
-        if not (_is_number(self.window) and math.isfinite(self.window) and self.window >= 0):
+        require_positive("eta", self.eta)
+        require_positive("sigma", self.sigma)
+        require_choice("metric", self.metric, ("smooth", "euclidean"))
+        if not (is_number(self.window) and math.isfinite(self.window) and self.window >= 0):
             raise ValueError(f"window must be a finite number >= 0 (m; 0 is off), got "
                              f"{self.window!r}")
 
@@ -116,18 +127,18 @@ class BarrierParams:
     form: str = "printed"
 
     def __post_init__(self):
-        if not (_is_number(self.delta) and 0.0 < self.delta < 1.0):
+        if not (is_number(self.delta) and 0.0 < self.delta < 1.0):
             raise ValueError(f"delta must lie in (0, 1), got {self.delta!r}")
-        _require_positive("d_min", self.d_min)
-        _require_positive("kappa", self.kappa)
-        _require_positive("mu", self.mu)
-        if not (_is_number(self.epsilon) and math.isfinite(self.epsilon)
+        require_positive("d_min", self.d_min)
+        require_positive("kappa", self.kappa)
+        require_positive("mu", self.mu)
+        if not (is_number(self.epsilon) and math.isfinite(self.epsilon)
                 and self.epsilon >= 1.0):
             raise ValueError(
                 f"epsilon must be a finite value >= 1 (ε < 1 has unbounded gradients "
                 f"where the penalty is zero), got {self.epsilon!r}"
             )
-        _require_choice("form", self.form, ("printed", "definition"))
+        require_choice("form", self.form, ("printed", "definition"))
 
     @property
     def decay(self) -> float:
@@ -151,10 +162,10 @@ class NMPCParams:
         model (eq. 1) in both solvers, when it should differ from the sampling period: the
         prediction then spans N·prediction_ts, and the terminal constraint x_N = x_a asks the
         UAV to be at rest at the artificial equilibrium after that time rather than N·T_s.
-        See :mod:`paper_repro.timeline` for why this sets the mission's clock.
+        See :mod:`paper_repro.analysis.clock` for why this sets the mission's clock.
     q, r, t : diagonals of Q (12), R (4), T (3), *paper*. Another vehicle
-        (:class:`~paper_repro.vehicle.VehicleModel`) needs n_x, n_u and p entries; the
-        :class:`~paper_repro.ocp.OCP` checks them against its model.
+        (:class:`~paper_repro.vehicles.base.VehicleModel`) needs n_x, n_u and p entries; the
+        :class:`~paper_repro.problem.ocp.OCP` checks them against its model.
     state_lower, state_upper : (12,) bounds of the quadrotor's 𝒳, *paper*; position, Euler
         angles (rad), velocities (m/s), Euler-angle rates (rad/s). Another vehicle carries its
         own bounds.
@@ -163,24 +174,26 @@ class NMPCParams:
         i.e. 25 cm inside the 25 m workspace walls; the relaxation only needs to keep
         (x_a, u_a) off the boundary (Limon et al. 2018), and the paper's targets sit at
         z = 0, which is the boundary itself (see ``relaxed_bounds``).
-    solver : ``"rti"`` (default, Gauss-Newton SQP with HPIPM, :mod:`paper_repro.rti`) or
-        ``"reference"`` (IPOPT with the exact Hessian, :mod:`paper_repro.nmpc`, as the paper).
+    solver : ``"rti"`` (default, Gauss-Newton SQP with HPIPM, :mod:`paper_repro.solvers.rti`) or
+        ``"reference"`` (IPOPT with the exact Hessian, :mod:`paper_repro.solvers.ipopt`, as the
+        paper).
     sqp_iterations : SQP iterations per sampling instant of the ``rti`` solver (1 is the
         real-time iteration).
     line_search : *chosen* ``False``: the ``rti`` solver takes every full Gauss-Newton step,
         the textbook real-time iteration. ``True`` is the *damped RTI*
-        (:class:`~paper_repro.rti.MeritLineSearch`): steps are shortened on the ℓ1 merit
+        (:class:`~paper_repro.solvers.rti.MeritLineSearch`): steps are shortened on the ℓ1 merit
         function and the next instants' QPs get a Levenberg–Marquardt term. It is smoother
         than the paper's controller, not a faster way to the same one: with the Euclidean
         metric it removes most of the chattering the paper reports (Fig. 8), so it is not the
         default. It is the remedy where a region moves at the vehicle, where full steps fall
         into a period-2 oscillation that IPOPT does not show (``benchmarks/fidelity.py``).
     qp_solver : QP solver of the ``rti`` solver: ``"riccati"`` (default, a Riccati recursion
-        warm-started with the previous active set, :mod:`paper_repro.stage_qp`, HPIPM as its
+        warm-started with the previous active set, :mod:`paper_repro.solvers.riccati_qp`, HPIPM as
+        its
         fallback) or ``"hpipm"`` (HPIPM's interior-point method for every QP).
     region_slots : number of LiDAR-visible regions the NLP can hold at once.
     points_per_region : capacity of each region slot; scans with more visible points are
-        reduced to the nearest ones (see ``paper_repro.nmpc``).
+        reduced to the nearest ones (see ``paper_repro.solvers.ipopt``).
     """
 
     horizon: int = 35
@@ -208,33 +221,33 @@ class NMPCParams:
     points_per_region: int = 120
 
     def __post_init__(self):
-        _require_int("horizon", self.horizon, 1)
-        _require_positive("ts", self.ts)
+        require_int("horizon", self.horizon, 1)
+        require_positive("ts", self.ts)
         if self.prediction_ts is not None:
-            _require_positive("prediction_ts", self.prediction_ts)
+            require_positive("prediction_ts", self.prediction_ts)
         for name, n in (("state_lower", 12), ("state_upper", 12), ("input_lower", 4),
                         ("input_upper", 4)):
-            _require_vector(name, getattr(self, name), n)
+            require_vector(name, getattr(self, name), n)
         for name in ("q", "r", "t"):  # their length is the model's (checked by the OCP)
-            _require_vector(name, getattr(self, name), None)
+            require_vector(name, getattr(self, name), None)
         # Cross-field: 𝒳 and 𝒰 must be boxes with interior (lower < upper, per index), or
         # the first QP is infeasible and HPIPM fails without saying why.
-        _require_ordered("state_lower", self.state_lower, "state_upper", self.state_upper)
-        _require_ordered("input_lower", self.input_lower, "input_upper", self.input_upper)
+        require_ordered("state_lower", self.state_lower, "state_upper", self.state_upper)
+        require_ordered("input_lower", self.input_lower, "input_upper", self.input_upper)
         if any(x < 0 for x in self.q):
             raise ValueError(f"q must be >= 0 (Q ⪰ 0), got {self.q!r}")
         for name in ("r", "t"):
             if any(x <= 0 for x in getattr(self, name)):
                 raise ValueError(f"{name} must be > 0 ({name.upper()} ≻ 0), got "
                                  f"{getattr(self, name)!r}")
-        if not (_is_number(self.lam) and 0.0 < self.lam < 1.0):
+        if not (is_number(self.lam) and 0.0 < self.lam < 1.0):
             raise ValueError(f"lam must lie in (0, 1), got {self.lam!r}")
-        _require_choice("solver", self.solver, ("rti", "reference"))
-        _require_choice("qp_solver", self.qp_solver, ("riccati", "hpipm"))
+        require_choice("solver", self.solver, ("rti", "reference"))
+        require_choice("qp_solver", self.qp_solver, ("riccati", "hpipm"))
         if not isinstance(self.line_search, bool):
             raise ValueError(f"line_search must be True or False, got {self.line_search!r}")
         for name in ("region_slots", "points_per_region", "sqp_iterations"):
-            _require_int(name, getattr(self, name), 1)
+            require_int(name, getattr(self, name), 1)
 
     @property
     def prediction_step(self) -> float:
@@ -260,6 +273,10 @@ def relaxed_box(lower, upper, lam: float) -> tuple[np.ndarray, np.ndarray]:
     return mid - lam * half, mid + lam * half
 
 
+PREDICTIONS = ("static", "oracle", "kalman")
+"""How the controller predicts the regions it sees (``SimulationParams.prediction``)."""
+
+
 @dataclass(frozen=True)
 class SimulationParams:
     """Closed-loop mission settings.
@@ -268,7 +285,7 @@ class SimulationParams:
     ----------
     scenario : scene name (``"paper"``, ``"encounter"``, ``"random"``, or with moving
         regions ``"crossing"``, ``"oncoming"``, ``"random-crossing"``, see
-        :func:`paper_repro.scene.make_scene`).
+        :func:`paper_repro.world.scenarios.make_scene`).
     kind : ``"mission"`` (reach every target in turn, as the paper) or ``"passage"`` (the run
         ends when the UAV crosses the scene's finish line, 2 m past the obstacle field of a
         random scene; needs a scene with a ``finish``).
@@ -292,7 +309,7 @@ class SimulationParams:
         every region stays where it is seen, and the solver is called exactly as without
         moving regions), ``"oracle"`` (each region moves on at its true velocity, from the
         scene's motions) or ``"kalman"`` (at the velocity estimated from the scans by
-        :class:`paper_repro.tracking.RegionTracker`). Only scenes with moving regions tell
+        :class:`paper_repro.world.tracking.RegionTracker`). Only scenes with moving regions tell
         them apart.
     """
 
@@ -309,23 +326,23 @@ class SimulationParams:
     prediction: str = "static"
 
     def __post_init__(self):
-        _require_choice("kind", self.kind, ("mission", "passage"))
-        _require_choice("prediction", self.prediction, ("static", "oracle", "kalman"))
-        _require_positive("tolerance", self.tolerance)
-        _require_positive("lidar_range", self.lidar_range)
+        require_choice("kind", self.kind, ("mission", "passage"))
+        require_choice("prediction", self.prediction, PREDICTIONS)
+        require_positive("tolerance", self.tolerance)
+        require_positive("lidar_range", self.lidar_range)
         for name in ("stall_speed", "stall_time", "stall_distance"):
-            _require_positive(name, getattr(self, name))
+            require_positive(name, getattr(self, name))
         if not (isinstance(self.scenario, str) and self.scenario):
             raise ValueError(f"scenario must be a scene name (a non-empty str), got "
                              f"{self.scenario!r}")
-        _require_int("max_steps", self.max_steps, 1)
-        _require_int("seed", self.seed, 0)
-        _require_int("fault_steps", self.fault_steps, 1)
+        require_int("max_steps", self.max_steps, 1)
+        require_int("seed", self.seed, 0)
+        require_int("fault_steps", self.fault_steps, 1)
 
 
 @dataclass(frozen=True)
 class SensorParams:
-    """Imperfections of the virtual LiDAR (:class:`paper_repro.scene.Lidar`), for studies.
+    """Imperfections of the virtual LiDAR (:class:`paper_repro.world.lidar.Lidar`), for studies.
 
     The defaults are a perfect sensor, as in the paper: every point within r_s is returned
     exactly, and nothing else. Noise is drawn from a generator seeded with ``seed``, so a
@@ -350,10 +367,10 @@ class SensorParams:
     def __post_init__(self):
         for name in ("range_noise", "spurious_rate"):
             v = getattr(self, name)
-            if not (_is_number(v) and math.isfinite(v) and v >= 0):
+            if not (is_number(v) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
-        _require_range("dropout", self.dropout, 0.0, 1.0)
-        _require_int("seed", self.seed, 0)
+        require_range("dropout", self.dropout, 0.0, 1.0)
+        require_int("seed", self.seed, 0)
 
     @property
     def perfect(self) -> bool:
@@ -425,49 +442,3 @@ class Config:
         return cls(**parts)
 
 
-def _is_number(value) -> bool:
-    """A real scalar, not a bool (``True`` is an ``int`` but never a meaningful setting)."""
-    return (isinstance(value, (int, float, np.floating, np.integer))
-            and not isinstance(value, (bool, np.bool_)))
-
-
-def _require_positive(name: str, value: float) -> None:
-    if not (_is_number(value) and math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-
-
-def _require_range(name: str, value: float, lower: float, upper: float,
-                   closed_upper: bool = False) -> None:
-    """``lower <= value < upper`` (``<= upper`` when ``closed_upper``), finite."""
-    inside = _is_number(value) and math.isfinite(value) and lower <= value and (
-        value <= upper if closed_upper else value < upper)
-    if not inside:
-        bracket = "]" if closed_upper else ")"
-        raise ValueError(f"{name} must be a finite number in [{lower}, {upper}{bracket}, "
-                         f"got {value!r}")
-
-
-def _require_int(name: str, value: int, minimum: int) -> None:
-    if not (isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
-            and value >= minimum):
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-
-
-def _require_vector(name: str, value, n: int | None) -> None:
-    """``n`` finite numbers (``None``: at least one)."""
-    if not (isinstance(value, (tuple, list)) and (len(value) == n if n else len(value) >= 1)
-            and all(_is_number(x) and math.isfinite(x) for x in value)):
-        raise ValueError(f"{name} must be {n or 'one or more'} finite numbers, got {value!r}")
-
-
-def _require_ordered(lower_name: str, lower, upper_name: str, upper) -> None:
-    """Bounds of a box: lower[i] < upper[i] for every i, naming the first bad index."""
-    for i, (lo, hi) in enumerate(zip(lower, upper, strict=True)):
-        if not lo < hi:
-            raise ValueError(f"{lower_name}[{i}] must be < {upper_name}[{i}], got {lo!r} >= "
-                             f"{hi!r}")
-
-
-def _require_choice(name: str, value: str, choices: tuple[str, ...]) -> None:
-    if not (isinstance(value, str) and value in choices):
-        raise ValueError(f"{name} must be one of {choices}, got {value!r}")

@@ -10,6 +10,9 @@ non-editable install.
 ``results_dir()``      cached simulation results, one folder per config hash (git-ignored)
 ``notebooks_dir()``    the notebook sources (stored without outputs)
 ``executed_dir()``     executed copies written by papermill (git-ignored)
+``study_dir(name)``    a study's table and figures, ``figures/studies/<name>``
+``tuning_dir()``       the tuning study and its figures, ``figures/tuning``
+``golden_dir()``       the golden flights, ``figures/golden``
 =====================  ===========================================================
 """
 
@@ -47,3 +50,20 @@ def executed_dir(quick: bool = False) -> Path:
     """``notebooks/executed/`` (or its ``quick/`` subfolder): papermill's executed copies."""
     base = notebooks_dir() / "executed"
     return base / "quick" if quick else base
+
+
+def study_dir(name: str, quick: bool = False) -> Path:
+    """Committed home of a study's table and figures: ``figures/studies/<name>`` (or
+    ``figures/quick/studies/<name>``, git-ignored)."""
+    return figures_dir(quick) / "studies" / name
+
+
+def tuning_dir(quick: bool = False) -> Path:
+    """Committed home of the tuning study and its figures: ``figures/tuning`` (or
+    ``figures/quick/tuning``, git-ignored)."""
+    return figures_dir(quick) / "tuning"
+
+
+def golden_dir() -> Path:
+    """``figures/golden/``: the committed golden flights and ``golden.json``."""
+    return figures_dir() / "golden"

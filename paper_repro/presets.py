@@ -2,7 +2,7 @@
 
 ``paper`` (the default everywhere) is :class:`~paper_repro.config.Config` as printed in
 Section V. Under it the paper mission lasts ≈1,390 s of flight, where the paper's time axes
-(Figs. 4–8) span 0–500 s. :mod:`paper_repro.timeline` shows why (the terminal equality
+(Figs. 4–8) span 0–500 s. :mod:`paper_repro.analysis.clock` shows why (the terminal equality
 x_N = x_a over N·h = 0.35 s makes the lateral approach an exponential with τ ≈ 155 s) and
 which single reading of the printed numbers gives the paper's clock; the timeline study
 (``python -m paper_repro study timeline``, notebook ``11_timeline``) flies the candidates.
@@ -32,7 +32,7 @@ import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from .config import Config
+from paper_repro.config import Config
 
 
 @dataclass(frozen=True)

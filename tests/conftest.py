@@ -16,7 +16,7 @@ def rng() -> np.random.Generator:
 def l_cloud() -> np.ndarray:
     """A nonconvex (L-shaped) cloud of 3-D points with irregular spacing, about 2 m x 2 m.
 
-    Built on a jittered grid so that it does not depend on ``paper_repro.scene``.
+    Built on a jittered grid so that it does not depend on ``paper_repro.world.scene``.
     """
     gen = np.random.default_rng(11)
     g = np.arange(0.0, 2.01, 0.4)

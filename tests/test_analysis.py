@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from paper_repro import analysis as A
+from paper_repro.analysis import statistics as A
 
 
 def _table(n=30, seed=0):

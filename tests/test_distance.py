@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from paper_repro import distance as dist_mod
-from paper_repro.distance import (
+from paper_repro.problem import distance as dist_mod
+from paper_repro.problem.distance import (
     CloudWeights,
     clearance,
     euclidean_distance,

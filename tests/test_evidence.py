@@ -1,4 +1,4 @@
-"""The committed evidence is what this commit's code makes (paper_repro.evidence).
+"""The committed evidence is what this commit's code makes (paper_repro.evidence.golden).
 
 * the golden flights, flown now, equal their committed copies;
 * ``golden.json`` is the hash of those copies;
@@ -14,8 +14,9 @@ import shutil
 import numpy as np
 import pytest
 
-from paper_repro import Config, evidence, paths
-from paper_repro.runs import run_key
+from paper_repro import Config, paths
+from paper_repro.evidence import golden as evidence
+from paper_repro.studies.runs import run_key
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +28,7 @@ def golden_check():
 @pytest.mark.parametrize("flight", evidence.GOLDEN_FLIGHTS, ids=lambda f: f.name)
 def test_golden_flight_equals_its_committed_copy(flight, golden_check):
     row = golden_check[flight.name]
-    committed = np.load(evidence.golden_dir() / f"{flight.name}.npy")
+    committed = np.load(paths.golden_dir() / f"{flight.name}.npy")
     assert row["flown"].shape == committed.shape == (flight.steps, row["flown"].shape[1])
     assert row["position_error"] <= evidence.POSITION_TOLERANCE, (
         f"{flight.name} moved by {row['position_error']:.3g} m: regenerate the golden flights "
@@ -42,7 +43,7 @@ def test_golden_flights_exercise_what_they_claim(golden_check):
     reference = golden_check["reference-encounter-smooth"]["flown"]
     np.testing.assert_array_equal(reference[0, :12], encounter[600, :12])
     # Inside the LiDAR's 3 m of the encounter's cloud for the last few hundred steps.
-    from paper_repro.scene import make_scene
+    from paper_repro.world.scenarios import make_scene
 
     cloud = make_scene("encounter").all_points
     near = np.linalg.norm(encounter[:, None, :3] - cloud[None], axis=2).min(axis=1)
@@ -50,7 +51,7 @@ def test_golden_flights_exercise_what_they_claim(golden_check):
 
 
 def test_golden_json_is_the_hash_of_the_committed_files():
-    stored = json.loads((evidence.golden_dir() / "golden.json").read_text())
+    stored = json.loads((paths.golden_dir() / "golden.json").read_text())
     assert set(stored["files"]) == {f.name for f in evidence.GOLDEN_FLIGHTS}
     assert evidence.recomputed_golden_hash() == stored["hash"] == evidence.golden_hash()
 
@@ -79,7 +80,7 @@ def test_every_evidence_folder_is_listed():
 
 
 def test_a_stamp_goes_stale_when_the_golden_set_changes(tmp_path, monkeypatch):
-    shutil.copytree(evidence.golden_dir(), tmp_path / "figures" / "golden")
+    shutil.copytree(paths.golden_dir(), tmp_path / "figures" / "golden")
     monkeypatch.setenv(paths.ROOT_ENV, str(tmp_path))
     study = tmp_path / "figures" / "studies" / "monte_carlo"
     study.mkdir(parents=True)
@@ -92,10 +93,10 @@ def test_a_stamp_goes_stale_when_the_golden_set_changes(tmp_path, monkeypatch):
     # A flight moved: one golden file rewritten, golden.json with it.
     path = tmp_path / "figures" / "golden" / "paper-smooth.npy"
     np.save(path, np.load(path) + 1e-6)
-    files = {f.name: evidence._sha256(tmp_path / "figures" / "golden" / f"{f.name}.npy")
+    files = {f.name: evidence.sha256_of(tmp_path / "figures" / "golden" / f"{f.name}.npy")
              for f in evidence.GOLDEN_FLIGHTS}
     (tmp_path / "figures" / "golden" / "golden.json").write_text(
-        json.dumps({"hash": evidence._set_hash(files), "files": files}))
+        json.dumps({"hash": evidence.set_hash(files), "files": files}))
     assert evidence.golden_hash() != before
     assert "studies/monte_carlo" in evidence.stale_evidence()
     assert run_key(Config(), 100, "fp") != key  # every cached run is retired with it
@@ -113,7 +114,7 @@ def test_the_paper_summary_regenerates_byte_for_byte(tmp_path):
     """The flight columns of figures/summary.csv are what this code flies: both paper
     missions (about a minute each, in parallel) and the summary notebook, into a fresh
     folder, give the committed file byte for byte."""
-    from paper_repro.reproduce import reproduce
+    from paper_repro.studies.reproduce import reproduce
 
     report = reproduce(notebooks=["06_summary"], figures_dir=tmp_path / "figures",
                        results_dir=tmp_path / "results", executed_dir=tmp_path / "executed",

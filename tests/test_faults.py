@@ -13,11 +13,13 @@ import numpy as np
 import pytest
 
 from paper_repro import Config, NMPCParams, SimulationParams, make_scene
-from paper_repro.controllers import make_controller
-from paper_repro.metrics import COLLISION_CLEARANCE, summary_row
-from paper_repro.safety import SetupHazardWarning
-from paper_repro.scene import Box, Region, Scene
-from paper_repro.simulation import Faults, SimulationResult, simulate
+from paper_repro.analysis.metrics import COLLISION_CLEARANCE, summary_row
+from paper_repro.sim.checks import SetupHazardWarning
+from paper_repro.sim.loop import Faults, simulate
+from paper_repro.sim.result import SimulationResult
+from paper_repro.solvers.factory import make_controller
+from paper_repro.world.scene import Region, Scene
+from paper_repro.world.shapes import Box
 
 ENCOUNTER = Config(simulation=SimulationParams(scenario="encounter"))
 STEPS = 1600

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from paper_repro import Config, paths
-from paper_repro.metrics import chattering_metrics
-from paper_repro.simulation import simulate
+from paper_repro.analysis.metrics import chattering_metrics
+from paper_repro.sim.loop import simulate
 
 
 def _window(name: str, line_search: bool = False):

@@ -3,15 +3,10 @@
 import numpy as np
 import pytest
 
-from paper_repro.controllers import make_controller
-from paper_repro.ground_robot import (
-    fly,
-    planar_scan,
-    planar_scene,
-    unicycle_config,
-    unicycle_model,
-)
-from paper_repro.rti import RealTimeNMPC
+from paper_repro.solvers.factory import make_controller
+from paper_repro.solvers.rti import RealTimeNMPC
+from paper_repro.vehicles.unicycle import unicycle_config, unicycle_model
+from paper_repro.world.planar import fly, planar_scan, planar_scene
 
 
 @pytest.fixture(scope="module")

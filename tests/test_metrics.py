@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from paper_repro import Config, make_scene
-from paper_repro.metrics import (
+from paper_repro.analysis.metrics import (
     chattering_metrics,
     input_spectrum,
     scan_change_steps,
@@ -13,7 +13,7 @@ from paper_repro.metrics import (
     summary_table,
     tracking_error,
 )
-from paper_repro.simulation import SimulationResult
+from paper_repro.sim.result import SimulationResult
 
 TS = 0.01
 T = np.arange(0.0, 20.0, TS)

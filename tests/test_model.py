@@ -9,7 +9,7 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from paper_repro.config import QuadrotorParams
-from paper_repro.model import (
+from paper_repro.vehicles.quadrotor import (
     continuous_dynamics,
     equilibrium,
     hover_input,

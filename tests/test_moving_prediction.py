@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 
 from paper_repro import Config, DistanceParams, Lidar, NMPCParams, SimulationParams, make_scene
-from paper_repro.distance import smooth_distance
-from paper_repro.model import equilibrium
-from paper_repro.nmpc import TrackingNMPC
-from paper_repro.ocp import OCP, ScanLayout
-from paper_repro.rti import RealTimeNMPC
+from paper_repro.problem.distance import smooth_distance
+from paper_repro.problem.ocp import OCP
+from paper_repro.problem.scan import ScanLayout
+from paper_repro.solvers.ipopt import TrackingNMPC
+from paper_repro.solvers.rti import RealTimeNMPC
+from paper_repro.vehicles.quadrotor import equilibrium
 
 SMALL = NMPCParams(region_slots=1, points_per_region=48)
 

@@ -17,20 +17,17 @@ import pytest
 
 from paper_repro import Config, SimulationParams
 from paper_repro.config import SensorParams
-from paper_repro.model import equilibrium
-from paper_repro.ocp import NMPCSolution
-from paper_repro.random_scenes import RandomSceneParams, random_scene
-from paper_repro.runs import run_key
-from paper_repro.scene import (
-    MEETING_TIME,
-    Box,
-    Lidar,
-    Motion,
-    Region,
-    Scene,
-    make_scene,
-)
-from paper_repro.simulation import SimulationResult, simulate
+from paper_repro.problem.ocp import NMPCSolution
+from paper_repro.sim.loop import simulate
+from paper_repro.sim.result import SimulationResult
+from paper_repro.studies.runs import run_key
+from paper_repro.vehicles.quadrotor import equilibrium
+from paper_repro.world.lidar import Lidar
+from paper_repro.world.motion import Motion
+from paper_repro.world.random_scenes import RandomSceneParams, random_scene
+from paper_repro.world.scenarios import MEETING_TIME, make_scene
+from paper_repro.world.scene import Region, Scene
+from paper_repro.world.shapes import Box
 
 # --- Motion ---------------------------------------------------------------------------------
 
@@ -184,7 +181,7 @@ def test_clouds_at_moves_each_region_rigidly():
 def straight_flight():
     """The real controller flying the crossing scene's start → target with no region at all
     (no avoidance, hence what any prediction that ignores the region would fly): 10 s."""
-    from paper_repro.controllers import make_controller
+    from paper_repro.solvers.factory import make_controller
 
     config = Config(simulation=SimulationParams(scenario="crossing"))
     crossing = make_scene("crossing")
@@ -357,11 +354,6 @@ def approach_runs():
     scene = _approaching_scene()
     runs = {}
     for prediction in ("static", "oracle", "kalman"):
-        if prediction == "kalman":
-            try:
-                import paper_repro.tracking  # noqa: F401
-            except ImportError:
-                continue
         config = Config(simulation=SimulationParams(prediction=prediction))
         ctl = HoverController(config)
         result = simulate(config, ctl, max_steps=300, scene=scene, progress=False)

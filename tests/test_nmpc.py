@@ -15,10 +15,10 @@ from paper_repro import (
     clearance,
     make_scene,
 )
-from paper_repro.model import equilibrium, plant_step, rk4_discretisation
-from paper_repro.nmpc import TrackingNMPC
-from paper_repro.ocp import OCP
-from paper_repro.simulation import simulate
+from paper_repro.problem.ocp import OCP
+from paper_repro.sim.loop import simulate
+from paper_repro.solvers.ipopt import TrackingNMPC
+from paper_repro.vehicles.quadrotor import equilibrium, plant_step, rk4_discretisation
 
 # The encounter region has about 40 points: one slot of 48 holds every visible point, so the
 # problem is the paper's while the NLP stays small enough for CI.
@@ -162,7 +162,7 @@ def test_euclidean_variant_agrees_with_the_fast_path_near_the_corner(scene):
     """150 IPOPT steps of the Euclidean baseline 1.6 m from the corner: every solve succeeds,
     every state stays in 𝒳 and every input in 𝒰, and the real-time solver flies the same
     path to within a centimetre (both read the same description of problem 21)."""
-    from paper_repro.controllers import make_controller
+    from paper_repro.solvers.factory import make_controller
 
     near = dataclasses.replace(scene, start=(-18.6, 0.0, 2.0))
     cfg = _config("euclidean")
@@ -223,8 +223,8 @@ def test_bad_solve_arguments_are_rejected(smooth_controller):
 
 @pytest.mark.parametrize("solver", ["rti", "reference"])
 def test_cli_run_saves_a_loadable_result(tmp_path, capsys, solver):
-    from paper_repro.cli import main
-    from paper_repro.simulation import SimulationResult
+    from paper_repro.cli.main import main
+    from paper_repro.sim.result import SimulationResult
 
     out = tmp_path / "run"
     assert main(["run", "--scenario", "encounter", "--metric", "smooth", "--solver", solver,

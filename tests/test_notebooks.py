@@ -11,11 +11,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from paper_repro import Config, NMPCParams, metrics
-from paper_repro import reproduce as R
-from paper_repro import study as S
+from paper_repro import Config, NMPCParams
+from paper_repro.analysis import metrics
+from paper_repro.config import PREDICTIONS
 from paper_repro.paths import notebooks_dir
-from paper_repro.simulation import SimulationResult
+from paper_repro.sim.result import SimulationResult
+from paper_repro.studies import engine as S
+from paper_repro.studies import reproduce as R
+from paper_repro.studies.catalogue import SENSING_WINDOWS, make_study
+from paper_repro.studies.catalogue import STUDY_NOTEBOOKS as NOTEBOOK_OF_STUDY
+from paper_repro.studies.runs import ensure_result
 
 NOTEBOOK_FILES = sorted(notebooks_dir().glob("*.ipynb"))
 SPECS = {nb.name: nb for nb in R.NOTEBOOKS}
@@ -29,11 +34,11 @@ CI_OVERRIDES = {"08_animation": {"frames": 4}, "07_distance_tutorial": {"grid_po
 def tiny_results(tmp_path_factory):
     """Result folders of both metrics, simulated once per session through the cache."""
     cache = tmp_path_factory.getbasetemp() / "tiny-results"
-    return {spec.config.distance.metric: R.ensure_result(spec, cache, progress=False)[0]
+    return {spec.config.distance.metric: ensure_result(spec, cache, progress=False)[0]
             for spec in R.run_specs(max_steps=TINY_STEPS, config=TINY)}
 
 
-STUDY_NOTEBOOKS = {nb: name for name, nb in S.STUDY_NOTEBOOKS.items()}
+STUDY_NOTEBOOKS = {nb: name for name, nb in NOTEBOOK_OF_STUDY.items()}
 STUDY_OUTPUTS = {
     "09_monte_carlo": ("mc_summary.csv", "mc_outcome_rates.png", "mc_paired_chattering.png",
                        "mc_clearance_ecdf.png", "mc_solve_times.png"),
@@ -62,9 +67,9 @@ STUDY_OVERRIDES = {"15_smooth_sensing": {"mission": "encounter", "mission_steps"
 def quick_studies(tmp_path_factory):
     """Both studies with --quick parameters, their runs in one shared cache."""
     base = tmp_path_factory.getbasetemp() / "studies"
-    return {name: S.run_study(S.make_study(name, quick=True), out=base / name, workers=0,
+    return {name: S.run_study(make_study(name, quick=True), out=base / name, workers=0,
                               runs_dir=base / "runs", progress=False, log=lambda line: None)
-            for name in S.STUDY_NOTEBOOKS}
+            for name in NOTEBOOK_OF_STUDY}
 
 
 def test_every_notebook_is_registered_and_every_registered_one_exists():
@@ -173,19 +178,20 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, tmp_path
         assert set(paired["sensor"]) == {"perfect", "noisy"} and (paired["scenes"] == 2).all()
     elif name == "16_moving_obstacles":
         rates = pd.read_csv(figures / "moving_obstacles_rates.csv")
-        assert set(rates["prediction"]) == set(S.PREDICTIONS) and (rates["n"] == 2).all()
+        assert set(rates["prediction"]) == set(PREDICTIONS) and (rates["n"] == 2).all()
         assert set(rates["metric"]) == {"smooth", "euclidean"}
         per_group = rates[rates["event"] != "collision"].groupby(["prediction", "metric"])["k"]
         assert (per_group.sum() == 2).all()  # every run in exactly one class
         # the crossing flown with each prediction, past the meeting (t = 8 s)
         crossing = pd.read_csv(figures / "moving_obstacles_crossing.csv")
-        assert list(crossing["prediction"]) == list(S.PREDICTIONS)
+        assert list(crossing["prediction"]) == list(PREDICTIONS)
         assert (crossing["steps"] == 1500).all() and (crossing["min_clearance_m"] < 1.0).all()
         assert crossing["t_closest_s"].between(7.0, 10.0).all()
         paired = pd.read_csv(figures / "moving_obstacles_paired.csv")
         assert set(paired["prediction"]) == {"oracle", "kalman"} and (paired["scenes"] == 2).all()
     elif name == "11_timeline":
-        from paper_repro.timeline import CANDIDATES, QUICK_STEPS
+        from paper_repro.studies.catalogue import CANDIDATES
+        from paper_repro.studies.catalogue import TIMELINE_QUICK_STEPS as QUICK_STEPS
 
         flights = pd.read_csv(figures / "timeline_flights.csv")
         assert list(flights["candidate"]) == list(CANDIDATES)
@@ -194,7 +200,7 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, tmp_path
         assert set(levers["lever"]) == {"T", "R", "rate weights", "N", "prediction_ts"}
     else:
         rates = pd.read_csv(figures / "sensing_window_rates.csv")
-        assert set(rates["window_m"]) == set(S.SENSING_WINDOWS) and (rates["n"] == 2).all()
+        assert set(rates["window_m"]) == set(SENSING_WINDOWS) and (rates["n"] == 2).all()
         per_width = rates[rates["event"] != "collision"].groupby("window_m")["k"].sum()
         assert (per_width == 2).all()  # every run in exactly one class
         # the encounter flown with and without the window: points enter and leave the sphere
@@ -213,7 +219,7 @@ TUNING_OUTPUTS = ("tuning_front.png", "tuning_importances.png", "tuning_heldout.
 def quick_tuning(tmp_path_factory):
     """A quick tuning study (σ and d_min on two 60-step passages: at most one new C build),
     its held-out flights on two scenes, all in the test's folders."""
-    from paper_repro import tuning
+    from paper_repro.studies import tuning
 
     base = tmp_path_factory.getbasetemp() / "tuning"
     res = tuning.tune(3, quick=True, workers=0, base=TINY, seeds=(0, 1), max_steps=60,

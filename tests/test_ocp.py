@@ -10,12 +10,14 @@ import pytest
 
 from paper_repro import Config, DistanceParams, Lidar, NMPCParams, SimulationParams, make_scene
 from paper_repro.config import BarrierParams
-from paper_repro.distance import CloudWeights, euclidean_distance, smooth_distance
-from paper_repro.model import equilibrium, quadrotor_model
-from paper_repro.nmpc import TrackingNMPC
-from paper_repro.ocp import OCP, PAD_LOG_WEIGHT, ScanLayout
-from paper_repro.rti import QPChain, QPLayout, RealTimeNMPC
-from paper_repro.vehicle import VehicleModel
+from paper_repro.problem.distance import CloudWeights, euclidean_distance, smooth_distance
+from paper_repro.problem.ocp import OCP
+from paper_repro.problem.scan import PAD_LOG_WEIGHT, ScanLayout
+from paper_repro.solvers.ipopt import TrackingNMPC
+from paper_repro.solvers.linearisation import QPLayout
+from paper_repro.solvers.rti import QPChain, RealTimeNMPC
+from paper_repro.vehicles.base import VehicleModel
+from paper_repro.vehicles.quadrotor import equilibrium, quadrotor_model
 
 SMALL = NMPCParams(region_slots=1, points_per_region=48)
 

@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from paper_repro import plant as plant_module
 from paper_repro._native import compiler
 from paper_repro.config import QuadrotorParams
-from paper_repro.model import continuous_dynamics, equilibrium, plant_step
-from paper_repro.plant import Plant
+from paper_repro.sim import plant as plant_module
+from paper_repro.sim.plant import Plant
+from paper_repro.vehicles.quadrotor import continuous_dynamics, equilibrium, plant_step
 
 needs_compiler = pytest.mark.skipif(compiler() is None, reason="no C compiler")
 TS = 0.01

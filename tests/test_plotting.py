@@ -10,9 +10,44 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from paper_repro import Config, make_scene  # noqa: E402
-from paper_repro import plotting as P  # noqa: E402
-from paper_repro.simulation import SimulationResult  # noqa: E402
+from paper_repro import Config, make_scene
+from paper_repro.plots import common as P
+from paper_repro.plots.animation import animate_flight
+from paper_repro.plots.distance import (
+    plot_distance_slice,
+    plot_eta_sigma,
+    plot_gradient_field,
+    plot_half_squared_limit,
+    slice_grid,
+    slice_through,
+)
+from paper_repro.plots.flight import (
+    avoidance_window,
+    lidar_instants,
+    plot_flight_3d,
+    plot_input_spectrum,
+    plot_projection,
+    plot_solve_times,
+    plot_states,
+    plot_thrusts,
+    plot_tracking_errors,
+)
+from paper_repro.plots.moving import (
+    PREDICTION_COLOURS,
+    animate_crossing,
+    plot_clearance_time,
+    plot_crossing_closest,
+    plot_prediction_study,
+    prediction_velocities,
+)
+from paper_repro.plots.sensing import (
+    plot_scan_change_du,
+    plot_scan_change_study,
+    plot_scan_change_thrusts,
+    plot_sensing_window,
+    scan_change_times,
+)
+from paper_repro.sim.result import SimulationResult
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +82,7 @@ def result(scene):
 
 
 def test_save_figure_is_byte_stable(tmp_path, result, scene):
-    fig = P.plot_projection(result, scene, plane="xz")
+    fig = plot_projection(result, scene, plane="xz")
     first = P.save_figure(fig, "a", tmp_path)
     second = P.save_figure(fig, "b", tmp_path)
     plt.close(fig)
@@ -97,13 +132,13 @@ def _drawn_steps(result, line):
 
 def test_paper_figures_draw_decimated_lines(result, scene):
     figs = {
-        "3d": P.plot_flight_3d(result, scene, max_points=500),
-        "xz": P.plot_projection(result, scene, "xz", max_points=500),
-        "xy": P.plot_projection(result, scene, "xy", max_points=500),
-        "thrusts": P.plot_thrusts(result, max_points=500),
-        "errors": P.plot_tracking_errors(result, max_points=500),
-        "states": P.plot_states(result, max_points=500),
-        "solve": P.plot_solve_times([result], max_points=500),
+        "3d": plot_flight_3d(result, scene, max_points=500),
+        "xz": plot_projection(result, scene, "xz", max_points=500),
+        "xy": plot_projection(result, scene, "xy", max_points=500),
+        "thrusts": plot_thrusts(result, max_points=500),
+        "errors": plot_tracking_errors(result, max_points=500),
+        "states": plot_states(result, max_points=500),
+        "solve": plot_solve_times([result], max_points=500),
     }
     assert len(figs["thrusts"].axes) == 4 and len(figs["states"].axes) == 3
     # Lines per axes: f_i, u_a,i and the target switch; e_x, e_y, e_z, the zero line and the
@@ -156,7 +191,7 @@ def test_paper_figures_draw_decimated_lines(result, scene):
     for fig in figs.values():
         plt.close(fig)
     # The spectrum has one point per Welch bin: 512 above 0 Hz; the cut-off is marked.
-    fig = P.plot_input_spectrum([result])
+    fig = plot_input_spectrum([result])
     spectrum, cutoff = fig.axes[0].get_lines()
     assert len(spectrum.get_xdata()) == 512 and np.all(spectrum.get_ydata() > 0)
     assert np.array_equal(cutoff.get_xdata(), [5.0, 5.0])
@@ -165,7 +200,7 @@ def test_paper_figures_draw_decimated_lines(result, scene):
 
 
 def test_thrust_figure_keeps_the_chattering_burst(result):
-    fig = P.plot_thrusts(result, max_points=500)
+    fig = plot_thrusts(result, max_points=500)
     line = fig.axes[0].get_lines()[0]
     assert np.max(line.get_ydata()) == pytest.approx(result.u[:, 0].max())
     plt.close(fig)
@@ -174,7 +209,7 @@ def test_thrust_figure_keeps_the_chattering_burst(result):
 def test_tracking_errors_are_against_the_active_target(result):
     # Signed by default, e_x = x_I − x_t as the paper's Figs. 5 and 7; |e| on request.
     for signed, f in ((True, lambda v: v), (False, abs)):
-        fig = P.plot_tracking_errors(result, max_points=10**6, signed=signed)
+        fig = plot_tracking_errors(result, max_points=10**6, signed=signed)
         ex = fig.axes[0].get_lines()[0].get_ydata()
         assert ex[100] == pytest.approx(f(result.x[100, 0] - result.targets[0, 0]))
         assert ex[5000] == pytest.approx(f(result.x[5000, 0] - result.targets[1, 0]))
@@ -186,28 +221,28 @@ def test_tracking_errors_are_against_the_active_target(result):
 
 def test_zoom_on_the_closest_approach(result):
     # Minimum clearance at step 3,000 (t = 30 s).
-    assert P.avoidance_window(result) == pytest.approx((20.0, 40.0))
-    assert P.avoidance_window(result, half_width=100.0) == pytest.approx((0.0, 59.99))
-    fig = P.plot_thrusts(result, t_range=(20.0, 40.0))
+    assert avoidance_window(result) == pytest.approx((20.0, 40.0))
+    assert avoidance_window(result, half_width=100.0) == pytest.approx((0.0, 59.99))
+    fig = plot_thrusts(result, t_range=(20.0, 40.0))
     t = fig.axes[0].get_lines()[0].get_xdata()
     assert t.min() == pytest.approx(20.0) and t.max() == pytest.approx(40.0)
     assert np.max(fig.axes[0].get_lines()[0].get_ydata()) == pytest.approx(result.u[:, 0].max())
     plt.close(fig)
-    for plot in (P.plot_states, P.plot_tracking_errors):
+    for plot in (plot_states, plot_tracking_errors):
         fig = plot(result, t_range=(45.0, 50.0))
         assert all(45.0 <= x <= 50.0 for x in fig.axes[0].get_lines()[0].get_xdata())
         plt.close(fig)
     with pytest.raises(ValueError, match="t_range"):
-        P.plot_thrusts(result, t_range=(100.0, 200.0))
+        plot_thrusts(result, t_range=(100.0, 200.0))
 
 
 def test_projection_rejects_unknown_plane(result, scene):
     with pytest.raises(ValueError, match="plane"):
-        P.plot_projection(result, scene, plane="zz")
+        plot_projection(result, scene, plane="zz")
 
 
 def test_lidar_instants_pick_the_closest_approach(result, scene):
-    steps = P.lidar_instants(result, scene, n=3)
+    steps = lidar_instants(result, scene, n=3)
     assert len(steps) == 3 and steps == sorted(steps)
     # The flight passes the tower (region 0) within range: its closest approach is drawn.
     tower = scene.clouds[0]
@@ -225,12 +260,12 @@ def test_a_saved_run_redraws_against_its_own_clouds(result, tmp_path):
     loaded = type(result).load(tmp_path / "run")
     assert loaded.scene.fingerprint() == result.scene.fingerprint()
     assert all(np.array_equal(a, b) for a, b in zip(loaded.scene.clouds, result.scene.clouds))
-    fig = P.plot_projection(loaded, loaded.scene, plane="xy", max_points=200)
+    fig = plot_projection(loaded, loaded.scene, plane="xy", max_points=200)
     drawn = [c.get_offsets() for c in fig.axes[0].collections]
     assert len(drawn) == len(result.scene.clouds)
     assert all(np.array_equal(d, c[:, :2]) for d, c in zip(drawn, result.scene.clouds))
     assert np.array_equal(fig.axes[0].get_lines()[0].get_xydata()[-1], result.x[-1, :2])
-    before = P.plot_projection(result, result.scene, plane="xy", max_points=200)
+    before = plot_projection(result, result.scene, plane="xy", max_points=200)
     pngs = [P.save_figure(f, name, tmp_path, formats=("png",), dpi=40, close=True)[0]
             for f, name in ((before, "before"), (fig, "after"))]
     assert pngs[0].read_bytes() == pngs[1].read_bytes()
@@ -238,7 +273,7 @@ def test_a_saved_run_redraws_against_its_own_clouds(result, tmp_path):
 
 def test_slice_through_the_middle_of_a_cloud():
     cloud = np.array([[0.0, 0.0, 2.0], [4.0, 1.0, 6.0]])
-    z, extent = P.slice_through(cloud, pad=1.0)
+    z, extent = slice_through(cloud, pad=1.0)
     assert z == 4.0 and extent == (-1.0, 5.0, -1.0, 2.0)
 
 
@@ -247,9 +282,9 @@ def test_tutorial_figures_and_bound(scene):
     from matplotlib.quiver import Quiver
 
     cloud = scene.clouds[1]
-    z, extent = P.slice_through(cloud)
+    z, extent = slice_through(cloud)
 
-    fig = P.plot_distance_slice(cloud, z, extent, 0.3, 0.8, n=30)
+    fig = plot_distance_slice(cloud, z, extent, 0.3, 0.8, n=30)
     smooth_ax, euclid_ax, colorbar = fig.axes
     assert colorbar.get_ylabel() == "m²" and "η = 0.3 m" in smooth_ax.get_title()
     levels = []
@@ -263,14 +298,14 @@ def test_tutorial_figures_and_bound(scene):
     assert levels[0] >= levels[1]  # D >= ½d² everywhere, so also its maximum
     plt.close(fig)
 
-    fig = P.plot_eta_sigma(cloud, z, extent, n=25)
+    fig = plot_eta_sigma(cloud, z, extent, n=25)
     assert [ax.get_title() for ax in fig.axes] == [
         "η = 0.1 m, σ = 0.8 m", "η = 0.3 m, σ = 0.8 m", "η = 0.6 m, σ = 0.8 m",
         "η = 0.3 m, σ = 0.8 m", "η = 0.3 m, σ = 2 m", "η = 0.3 m, σ = 100 m"]
     plt.close(fig)
 
-    fig = P.plot_gradient_field(cloud, z, extent, 0.3, 0.8, n=8)
-    _, _, q = P.slice_grid(extent, z, 8)
+    fig = plot_gradient_field(cloud, z, extent, 0.3, 0.8, n=8)
+    _, _, q = slice_grid(extent, z, 8)
     nearest = cloud[np.argmin(((q[:, None] - cloud[None]) ** 2).sum(axis=2), axis=1)]
     expected = (q - nearest)[:, :2] / np.linalg.norm((q - nearest)[:, :2], axis=1)[:, None]
     for ax in fig.axes:
@@ -282,7 +317,7 @@ def test_tutorial_figures_and_bound(scene):
     plt.close(fig)
 
     # The bound drawn holds: max gap <= eta² max ln(V/W_j) at every eta, and the gap >= 0.
-    fig = P.plot_half_squared_limit(cloud, z, extent, etas=[0.05, 0.3], n=15)
+    fig = plot_half_squared_limit(cloud, z, extent, etas=[0.05, 0.3], n=15)
     worst, median, bound = fig.axes[0].get_lines()
     for line in (worst, median, bound):
         assert list(line.get_xdata()) == [0.05, 0.3]
@@ -296,18 +331,18 @@ def test_tutorial_figures_and_bound(scene):
 def test_animation_writes_a_gif_with_the_requested_frames(tmp_path, result, scene):
     from PIL import Image
 
-    path = P.animate_flight(result, scene, tmp_path / "flight.gif", frames=3, dpi=30)
+    path = animate_flight(result, scene, tmp_path / "flight.gif", frames=3, dpi=30)
     with Image.open(path) as im:
         assert im.format == "GIF" and im.n_frames == 3
         assert im.size == (9 * 30, round(4.5 * 30))  # the 9 × 4.5 in figure at dpi 30
     with pytest.raises(ValueError, match="frames"):
-        P.animate_flight(result, scene, tmp_path / "x.gif", frames=0)
+        animate_flight(result, scene, tmp_path / "x.gif", frames=0)
 
 
 @pytest.mark.parametrize("seconds, shown", [(0.08, "80 ms"), (6.7e-4, "0.67 ms")])
 def test_solve_time_legend_shows_sub_millisecond_medians(result, seconds, shown):
     fast = dataclasses.replace(result, solve_time=np.full(len(result.solve_time), seconds))
-    fig = P.plot_solve_times([fast])
+    fig = plot_solve_times([fast])
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert labels == [f"smooth (median {shown})"]
     plt.close(fig)
@@ -316,9 +351,9 @@ def test_solve_time_legend_shows_sub_millisecond_medians(result, seconds, shown)
 # --- the smooth sensing window ----------------------------------------------------------------
 
 def test_sensing_window_figure_draws_psi_and_its_range_marks():
-    from paper_repro.distance import sensing_window
+    from paper_repro.problem.distance import sensing_window
 
-    fig = P.plot_sensing_window(3.0, widths=(0.25, 0.5, 1.0))
+    fig = plot_sensing_window(3.0, widths=(0.25, 0.5, 1.0))
     lines = fig.axes[0].get_lines()
     cutoff = lines[0]
     r = cutoff.get_xdata()
@@ -336,7 +371,7 @@ def test_sensing_window_figure_draws_psi_and_its_range_marks():
     plt.close(fig)
     for bad in ((), (0.0,), (3.0,)):
         with pytest.raises(ValueError, match="widths"):
-            P.plot_sensing_window(3.0, widths=bad)
+            plot_sensing_window(3.0, widths=bad)
 
 
 @pytest.fixture(scope="module")
@@ -354,11 +389,11 @@ def scan_result(result):
 
 
 def test_scan_change_times_are_the_steps_where_the_count_changes(scan_result):
-    assert np.allclose(P.scan_change_times(scan_result), [20.0, 25.0, 30.5])
+    assert np.allclose(scan_change_times(scan_result), [20.0, 25.0, 30.5])
 
 
 def test_scan_change_thrusts_mark_every_change_and_its_step(scan_result, result):
-    fig = P.plot_scan_change_thrusts([scan_result, result], ["changes", "none"],
+    fig = plot_scan_change_thrusts([scan_result, result], ["changes", "none"],
                                      t_range=(15.0, 35.0))
     axes = np.array(fig.axes).reshape(5, 2)
     for i in range(4):
@@ -381,14 +416,14 @@ def test_scan_change_thrusts_mark_every_change_and_its_step(scan_result, result)
     assert "0 changes" in axes[0, 1].get_title()
     plt.close(fig)
     with pytest.raises(ValueError, match="label"):
-        P.plot_scan_change_thrusts([result], ["a", "b"])
+        plot_scan_change_thrusts([result], ["a", "b"])
 
 
 def test_scan_change_du_draws_the_ecdfs_at_and_around_the_changes(scan_result):
-    from paper_repro.metrics import scan_change_steps
+    from paper_repro.analysis.metrics import scan_change_steps
 
     for neighbourhood in (20, None):
-        fig = P.plot_scan_change_du([scan_result], ["run"], neighbourhood=neighbourhood)
+        fig = plot_scan_change_du([scan_result], ["run"], neighbourhood=neighbourhood)
         ax = fig.axes[0]
         at_line, around_line, threshold = ax.get_lines()
         at, around = scan_change_steps(scan_result, neighbourhood)
@@ -420,7 +455,7 @@ def test_scan_change_study_draws_each_width():
                          "min_clearance_m": 1.3 + w / 10 + 0.01 * seed})
     rows[1]["scan_change_jump_share"] = np.nan  # a run without a change of the visible set
     rows[1]["du_scan_change_median_N"] = rows[1]["du_around_changes_median_N"] = np.nan
-    fig = P.plot_scan_change_study(pd.DataFrame(rows))
+    fig = plot_scan_change_study(pd.DataFrame(rows))
     rates, shares, steps, clearance = fig.axes
     heights = [p.get_height() for p in rates.patches]
     assert np.allclose(heights, [2 / 3, 1 / 3, 0.0] * 2)  # completed, stalled, collision
@@ -436,7 +471,7 @@ def test_scan_change_study_draws_each_width():
     assert np.allclose(medians, [1.31, 1.36])
     plt.close(fig)
     empty = pd.DataFrame(rows).assign(scan_change_jump_share=np.nan)
-    fig = P.plot_scan_change_study(empty)
+    fig = plot_scan_change_study(empty)
     assert "no change of the visible set" in [t.get_text() for t in fig.axes[1].texts]
     plt.close(fig)
 
@@ -447,7 +482,7 @@ class _HoverRecorder:
     """A stand-in controller that always hovers and records the velocities it is given."""
 
     def __init__(self, config, horizon: int = 5):
-        from paper_repro.model import equilibrium
+        from paper_repro.vehicles.quadrotor import equilibrium
 
         _, self.u_hover = equilibrium(np.zeros(3), 0.0, config.quadrotor)
         self.horizon = horizon
@@ -457,7 +492,7 @@ class _HoverRecorder:
         self.velocities = []
 
     def hover_guess(self, x0):
-        from paper_repro.ocp import NMPCSolution
+        from paper_repro.problem.ocp import NMPCSolution
 
         x0 = np.asarray(x0, float)
         return NMPCSolution(np.tile(self.u_hover, (self.horizon, 1)),
@@ -472,7 +507,9 @@ class _HoverRecorder:
 def _approach_scene():
     """A 2 m box 5 m ahead of a hovering UAV, coming at it at 1 m/s along −x, then turning
     to +y at t = 2.5 s (so an estimate must follow a change of velocity)."""
-    from paper_repro.scene import Box, Motion, Region, Scene
+    from paper_repro.world.motion import Motion
+    from paper_repro.world.scene import Region, Scene
+    from paper_repro.world.shapes import Box
 
     box = Region("incoming", Box((5.5, 0.0, 5.0), (2.0, 2.0, 2.0)), density=4.0)
     motion = Motion((0.0, 2.5, 3.5), ((0.0, 0.0, 0.0), (-2.5, 0.0, 0.0), (-2.5, 1.0, 0.0)))
@@ -482,7 +519,7 @@ def _approach_scene():
 
 def _fly_approach(prediction, sensor=None, steps=350):
     from paper_repro.config import SensorParams, SimulationParams
-    from paper_repro.simulation import simulate
+    from paper_repro.sim.loop import simulate
 
     config = Config(simulation=SimulationParams(prediction=prediction),
                     sensor=sensor or SensorParams())
@@ -501,19 +538,19 @@ def test_prediction_velocities_replay_what_the_controller_was_given(approach):
 
     result, given = approach["static"]
     assert all(v is None for v in given)
-    assert np.array_equal(P.prediction_velocities(result), np.zeros((result.steps, 1, 3)))
+    assert np.array_equal(prediction_velocities(result), np.zeros((result.steps, 1, 3)))
     result, given = approach["oracle"]
-    v = P.prediction_velocities(result)
+    v = prediction_velocities(result)
     assert v.shape == (result.steps, 1, 3) and np.array_equal(v, np.array(given))
     np.testing.assert_array_equal(v[100, 0], (-1.0, 0.0, 0.0))
     np.testing.assert_array_equal(v[300, 0], (0.0, 1.0, 0.0))
     noisy = _fly_approach("kalman", SensorParams(range_noise=0.05, dropout=0.2,
                                                  spurious_rate=2.0, seed=4))
     for result, given in (approach["kalman"], noisy):
-        v = P.prediction_velocities(result)
+        v = prediction_velocities(result)
         assert np.array_equal(v, np.array(given))  # bit for bit, noise included
     result = approach["kalman"][0]
-    v = P.prediction_velocities(result)
+    v = prediction_velocities(result)
     seen = np.flatnonzero(result.visible_points > 0)
     assert seen[0] > 0 and np.all(v[: seen[0]] == 0)  # nothing estimated before first sight
     assert np.linalg.norm(v[240, 0] - (-1.0, 0.0, 0.0)) < 0.2  # tracked before the turn
@@ -521,7 +558,7 @@ def test_prediction_velocities_replay_what_the_controller_was_given(approach):
 
 def test_clearance_time_draws_each_run_with_its_minimum(approach):
     results = [approach[p][0] for p in ("static", "oracle")]
-    fig = P.plot_clearance_time(results, ["static", "oracle"], t_range=(1.0, 3.0))
+    fig = plot_clearance_time(results, ["static", "oracle"], t_range=(1.0, 3.0))
     ax = fig.axes[0]
     lines = ax.get_lines()
     k = np.flatnonzero((results[0].t >= 1.0) & (results[0].t <= 3.0))
@@ -532,22 +569,22 @@ def test_clearance_time_draws_each_run_with_its_minimum(approach):
         j = k[np.argmin(r.clearance[k])]
         assert dot.get_xdata()[0] == pytest.approx(r.t[j])
         assert dot.get_ydata()[0] == pytest.approx(r.clearance[j])
-    assert lines[0].get_color() == P.PREDICTION_COLOURS["static"]
+    assert lines[0].get_color() == PREDICTION_COLOURS["static"]
     assert np.allclose(lines[-1].get_ydata(), 0.35)
     text = [t.get_text() for t in ax.get_legend().get_texts()]
     j = k[np.argmin(results[0].clearance[k])]
     assert text[0] == f"static: min {results[0].clearance[j]:.3f} m at {results[0].t[j]:.2f} s"
     plt.close(fig)
     with pytest.raises(ValueError, match="label"):
-        P.plot_clearance_time(results, ["one"])
+        plot_clearance_time(results, ["one"])
 
 
 def test_crossing_closest_draws_the_closest_approach_and_the_predicted_points(approach):
-    from paper_repro.scene import Lidar
+    from paper_repro.world.lidar import Lidar
 
     results = [approach[p][0] for p in ("static", "oracle", "kalman")]
-    velocities = [None] + [P.prediction_velocities(r) for r in results[1:]]
-    fig = P.plot_crossing_closest(results, ["static", "oracle", "kalman"],
+    velocities = [None] + [prediction_velocities(r) for r in results[1:]]
+    fig = plot_crossing_closest(results, ["static", "oracle", "kalman"],
                                   velocities=velocities, planes=("xy", "yz"))
     axes = np.array(fig.axes).reshape(2, 3)
     h = results[0].config.nmpc.prediction_step
@@ -575,24 +612,24 @@ def test_crossing_closest_draws_the_closest_approach_and_the_predicted_points(ap
     assert labels[-1] == "predicted at τ = 0, 0.17, 0.35 s"
     plt.close(fig)
     with pytest.raises(ValueError, match="one entry per run"):
-        P.plot_crossing_closest(results, ["a", "b", "c"], velocities=[None])
+        plot_crossing_closest(results, ["a", "b", "c"], velocities=[None])
     with pytest.raises(ValueError, match="plane"):
-        P.plot_crossing_closest(results[:1], ["a"], planes=("xw",))
+        plot_crossing_closest(results[:1], ["a"], planes=("xw",))
 
 
 def test_animate_crossing_writes_a_gif_of_the_requested_frames(approach, tmp_path):
     from PIL import Image
 
     result = approach["kalman"][0]
-    path = P.animate_crossing(result, tmp_path / "crossing.gif", frames=4, dpi=20,
+    path = animate_crossing(result, tmp_path / "crossing.gif", frames=4, dpi=20,
                               t_range=(1.0, 3.0))
     with Image.open(path) as im:
         assert im.format == "GIF" and im.n_frames == 4
         assert im.size == (2 * 90, 90)  # two 4.5 × 4.5 in panels at dpi 20
     with pytest.raises(ValueError, match="frames"):
-        P.animate_crossing(result, tmp_path / "x.gif", frames=0)
+        animate_crossing(result, tmp_path / "x.gif", frames=0)
     with pytest.raises(ValueError, match="velocities"):
-        P.animate_crossing(result, tmp_path / "x.gif", velocities=np.zeros((3, 1, 3)))
+        animate_crossing(result, tmp_path / "x.gif", velocities=np.zeros((3, 1, 3)))
 
 
 def test_prediction_study_draws_rates_and_runs_per_prediction_and_metric():
@@ -609,7 +646,7 @@ def test_prediction_study_draws_rates_and_runs_per_prediction_and_metric():
                              "completed": seed > 0, "stalled": seed == 0, "collision": hit,
                              "min_clearance_m": clear + 0.1 * seed,
                              "tv_u_rate_N_per_s": (2.0 if m == "smooth" else 500.0) + seed})
-    fig = P.plot_prediction_study(pd.DataFrame(rows))
+    fig = plot_prediction_study(pd.DataFrame(rows))
     completed, collided, stalled, step_limit, clearance, tv = fig.axes
     assert [t.get_text() for t in collided.get_xticklabels()] == ["static", "oracle", "kalman"]
     heights = [b.get_height() for b in collided.patches]  # smooth then euclidean, per prediction

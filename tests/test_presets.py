@@ -6,8 +6,9 @@ import dataclasses
 
 import pytest
 
-from paper_repro import cli, paths, presets, reproduce
+from paper_repro import cli, paths, presets
 from paper_repro.config import Config
+from paper_repro.studies import reproduce as reproduce
 
 
 def test_the_default_preset_is_the_printed_configuration():
@@ -72,7 +73,7 @@ def test_the_preset_enters_the_runs_of_reproduce():
 
 @pytest.mark.parametrize("name", ["monte_carlo", "eta_sweep", "sensor_noise"])
 def test_a_study_starts_from_the_preset(name):
-    from paper_repro.study import make_study
+    from paper_repro.studies.catalogue import make_study
 
     printed = make_study(name, quick=True)
     timed = make_study(name, quick=True, base=presets.preset("paper-timeline"))

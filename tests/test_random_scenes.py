@@ -9,14 +9,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from paper_repro.random_scenes import (
+from paper_repro.world.random_scenes import (
     NONCONVEX_KINDS,
     REGION_KINDS,
     RandomSceneParams,
     passage_progress,
     random_scene,
 )
-from paper_repro.scene import WORKSPACE_LOWER, WORKSPACE_UPPER, Scene, make_scene
+from paper_repro.world.scenarios import make_scene
+from paper_repro.world.scene import WORKSPACE_LOWER, WORKSPACE_UPPER, Scene
 
 SEEDS = range(50)
 PARAMS = RandomSceneParams()

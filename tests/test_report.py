@@ -1,8 +1,8 @@
-"""The README's numbers are formatted from the committed tables (paper_repro.report)."""
+"""The README's numbers are formatted from the committed tables (paper_repro.evidence.readme)."""
 
 import pytest
 
-from paper_repro import report
+from paper_repro.evidence import readme as report
 
 
 def test_every_readme_block_is_what_its_table_renders():
@@ -26,5 +26,5 @@ def test_render_replaces_only_block_bodies_and_names_unknown_blocks():
 
 
 def test_a_bar_inside_a_cell_is_escaped():
-    table = report._markdown(["max |Δu|"], [["1 | 2"]])
+    table = report.markdown_table(["max |Δu|"], [["1 | 2"]])
     assert table.splitlines()[0] == "| max \\|Δu\\| |" and "1 \\| 2" in table

@@ -11,10 +11,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from paper_repro import Config, DistanceParams, NMPCParams, paths, runs
-from paper_repro import reproduce as R
-from paper_repro.cli import main
-from paper_repro.simulation import SimulationResult
+from paper_repro import Config, DistanceParams, NMPCParams, paths
+from paper_repro.cli import reproduce as reproduce_command
+from paper_repro.cli.main import main
+from paper_repro.progress import PrefixedLines, heartbeat
+from paper_repro.sim.result import SimulationResult
+from paper_repro.studies import reproduce as R
+from paper_repro.studies import runs
 
 
 def _fake_result(spec, controller=None, progress=None):
@@ -191,7 +194,7 @@ def test_cli_solver_option_reaches_the_runs(tmp_path, monkeypatch, fake_simulati
         seen.append(kwargs["config"].nmpc.solver)
         return original(**{**kwargs, "notebooks": ["06_summary"]})
 
-    monkeypatch.setattr(R, "reproduce", spy)
+    monkeypatch.setattr(reproduce_command, "reproduce", spy)
     monkeypatch.setattr(paths, "results_dir", lambda: tmp_path / "results")
     monkeypatch.setattr(paths, "executed_dir", lambda quick=False: tmp_path / "executed")
     assert main(["reproduce", "--quick", "--solver", "reference", "--no-progress",
@@ -211,10 +214,9 @@ def test_a_silent_stage_still_prints_a_line_every_heartbeat(monkeypatch):
     """No stage of reproduce is silent for longer than HEARTBEAT_S (here 0.2 s)."""
     import time
 
-    monkeypatch.setattr(R, "HEARTBEAT_S", 0.2)
     stamps = []
-    lines = R._Lines(lambda line: stamps.append((time.perf_counter(), line)), "stage: ")
-    with R._heartbeat(lines, "testing"):
+    lines = PrefixedLines(lambda line: stamps.append((time.perf_counter(), line)), "stage: ")
+    with heartbeat(lines, "testing", interval=0.2):
         time.sleep(0.5)
         lines("a progress line")  # resets the clock
         time.sleep(0.5)

@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 from paper_repro import Config, DistanceParams, Lidar, NMPCParams, SimulationParams, make_scene
-from paper_repro.controllers import make_controller
-from paper_repro.metrics import COLLISION_CLEARANCE
-from paper_repro.model import equilibrium, rk4_discretisation
-from paper_repro.nmpc import TrackingNMPC
-from paper_repro.plant import Plant
-from paper_repro.rti import RealTimeNMPC
-from paper_repro.simulation import simulate
+from paper_repro.analysis.metrics import COLLISION_CLEARANCE
+from paper_repro.sim.loop import simulate
+from paper_repro.sim.plant import Plant
+from paper_repro.solvers.factory import make_controller
+from paper_repro.solvers.ipopt import TrackingNMPC
+from paper_repro.solvers.rti import RealTimeNMPC
+from paper_repro.vehicles.quadrotor import equilibrium, rk4_discretisation
 
 SMALL = NMPCParams(region_slots=1, points_per_region=48)
 
@@ -284,7 +284,8 @@ def test_merit_line_search_shortens_overshooting_steps_and_damps_the_next_qps():
     """On a merit that rises along the full step the step is halved until Armijo holds, δ
     starts at ``damping_start`` and grows; full steps relax δ back to 0. A descending full
     step is taken as it is, with one evaluation."""
-    from paper_repro.rti import MeritLineSearch, QPLayout
+    from paper_repro.solvers.linearisation import QPLayout
+    from paper_repro.solvers.rti import MeritLineSearch
 
     layout = QPLayout(horizon=2, nx=1, nu=1, na=1, ns=0, nc=1)
     search = MeritLineSearch(layout, damping_start=10.0, grow=4.0, relax=2.0)

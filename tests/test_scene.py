@@ -7,21 +7,11 @@ from itertools import pairwise
 import numpy as np
 import pytest
 
-from paper_repro.distance import clearance
-from paper_repro.scene import (
-    WORKSPACE_LOWER,
-    WORKSPACE_UPPER,
-    Box,
-    Cylinder,
-    Difference,
-    Lidar,
-    Region,
-    Union,
-    encounter_scene,
-    halton_cloud,
-    make_scene,
-    paper_scene,
-)
+from paper_repro.problem.distance import clearance
+from paper_repro.world.lidar import Lidar
+from paper_repro.world.scenarios import encounter_scene, make_scene, paper_scene
+from paper_repro.world.scene import WORKSPACE_LOWER, WORKSPACE_UPPER, Region
+from paper_repro.world.shapes import Box, Cylinder, Difference, Union, halton_cloud
 
 SHAPES = {
     "box": Box((1.0, 2.0, 3.0), (2.0, 3.0, 4.0)),

@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from paper_repro import Config, DistanceParams, SimulationParams
-from paper_repro.distance import CloudWeights, sensing_window, smooth_distance
-from paper_repro.ocp import OCP, ScanLayout
+from paper_repro.problem.distance import CloudWeights, sensing_window, smooth_distance
+from paper_repro.problem.ocp import OCP
+from paper_repro.problem.scan import ScanLayout
 
 R_S = 3.0
 
@@ -103,9 +104,9 @@ def test_both_solvers_fly_the_window_and_agree():
     import dataclasses
 
     from paper_repro import Lidar, NMPCParams, make_scene
-    from paper_repro.model import equilibrium
-    from paper_repro.nmpc import TrackingNMPC
-    from paper_repro.rti import RealTimeNMPC
+    from paper_repro.solvers.ipopt import TrackingNMPC
+    from paper_repro.solvers.rti import RealTimeNMPC
+    from paper_repro.vehicles.quadrotor import equilibrium
 
     scene = make_scene("encounter")
     small = NMPCParams(region_slots=1, points_per_region=48)

@@ -4,7 +4,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from paper_repro.stage_qp import StageQP
+from paper_repro.solvers.riccati_qp import StageQP
 
 
 def _random_qp(rng, nx, nu, nc, box=True):

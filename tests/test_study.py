@@ -13,19 +13,24 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from paper_repro import Config, NMPCParams, random_scenes, runs
-from paper_repro import study as S
-from paper_repro.controllers import make_controller
-from paper_repro.simulation import SimulationResult, simulate
+from paper_repro import Config, NMPCParams
+from paper_repro import studies as S
+from paper_repro.config import PREDICTIONS
+from paper_repro.sim.loop import simulate
+from paper_repro.sim.result import SimulationResult
+from paper_repro.solvers.factory import make_controller
+from paper_repro.studies import runs
+from paper_repro.studies.catalogue import Study, make_study, passage_config, passage_spec
+from paper_repro.world import random_scenes
 
 TINY = Config(nmpc=NMPCParams(region_slots=1, points_per_region=64))
 STEPS = 60
 
 
 def _study(n=3, name="tiny", steps=STEPS):
-    specs = [S.passage_spec(seed, metric, max_steps=steps, base=TINY)
+    specs = [passage_spec(seed, metric, max_steps=steps, base=TINY)
              for metric in ("smooth", "euclidean") for seed in range(n)]
-    return S.Study(name, tuple(specs))
+    return Study(name, tuple(specs))
 
 
 def _flight_columns(table):
@@ -53,15 +58,15 @@ def test_the_moving_study_flies_each_crossing_with_every_prediction():
     assert len(study.specs) == 3 * 3 * 2
     configs = [s.config.simulation for s in study.specs]
     assert {c.scenario for c in configs} == {"random-crossing"}
-    assert {c.prediction for c in configs} == set(S.PREDICTIONS)
+    assert {c.prediction for c in configs} == set(PREDICTIONS)
     labels = [dict(s.labels)["prediction"] for s in study.specs]
     assert labels == [c.prediction for c in configs]
     assert study.specs[0].scene().is_moving
     # One controller per worker and configuration: the prediction is part of the problem (the
     # scan carries velocities), the scene and the seed are not.
-    keys = {dict(s.labels)["prediction"]: S._controller_key(s.config) for s in study.specs}
+    keys = {dict(s.labels)["prediction"]: S.controller_key(s.config) for s in study.specs}
     assert len(set(keys.values())) == 3
-    same = {S._controller_key(s.config) for s in study.specs
+    same = {S.controller_key(s.config) for s in study.specs
             if dict(s.labels)["prediction"] == "oracle" and dict(s.labels)["metric"] == "smooth"}
     assert len(same) == 1
 
@@ -72,21 +77,21 @@ def test_bad_study_input_is_named():
     with pytest.raises(ValueError, match="etas"):
         S.eta_sweep(etas=(0.1, -0.2))
     with pytest.raises(ValueError, match="unique"):
-        spec = S.passage_spec(0)
-        S.Study("x", (spec, spec))
+        spec = passage_spec(0)
+        Study("x", (spec, spec))
     with pytest.raises(ValueError, match="workers"):
         S.run_study(_study(1), workers=-1)
     with pytest.raises(ValueError, match="scheduler"):
         S.run_study(_study(1), scheduler="localhost")
     with pytest.raises(ValueError, match="study must be one of"):
-        S.make_study("nope")
+        make_study("nope")
 
 
 # --- results carry their scene --------------------------------------------------------------
 
 def test_a_saved_random_run_redraws_against_its_own_clouds_after_the_generator_changes(
         tmp_path, monkeypatch):
-    cfg = S.passage_config(TINY, seed=4, max_steps=20)
+    cfg = passage_config(TINY, seed=4, max_steps=20)
     result = simulate(cfg, progress=False)
     result.save(tmp_path / "run")
     flown = [c.copy() for c in result.scene.clouds]
@@ -223,7 +228,7 @@ def test_the_noise_study_shares_its_perfect_runs_and_perturbs_the_others():
 
 def test_a_worker_builds_each_controller_once(monkeypatch):
     """Two passages of one configuration share one controller in a worker process."""
-    import paper_repro.controllers as controllers
+    from paper_repro.solvers import factory as controllers
 
     built = []
     real = controllers.make_controller
@@ -231,7 +236,7 @@ def test_a_worker_builds_each_controller_once(monkeypatch):
                         lambda cfg, *a, **k: built.append(cfg) or real(cfg, *a, **k))
     S._controller.cache_clear()
     specs = S.monte_carlo(scenes=2).specs
-    keys = [S._controller_key(s.config) for s in specs if dict(s.labels)["metric"] == "smooth"]
+    keys = [S.controller_key(s.config) for s in specs if dict(s.labels)["metric"] == "smooth"]
     assert len(keys) == 2 and keys[0] == keys[1]
     first, second = (S._controller(k) for k in keys)
     assert first is second and len(built) == 1

@@ -1,4 +1,4 @@
-"""The mission's clock: the tracking NMPC linearised at hover (paper_repro.timeline)."""
+"""The mission's clock: the tracking NMPC linearised at hover (paper_repro.analysis.clock)."""
 
 from __future__ import annotations
 
@@ -7,10 +7,16 @@ import dataclasses
 import numpy as np
 import pytest
 
-from paper_repro import timeline
+from paper_repro.analysis import clock as timeline
 from paper_repro.config import Config, NMPCParams
-from paper_repro.model import equilibrium
-from paper_repro.scene import Scene
+from paper_repro.studies.catalogue import (
+    CANDIDATES,
+    TIMELINE_QUICK_STEPS,
+    candidate_config,
+    timeline_study,
+)
+from paper_repro.vehicles.quadrotor import equilibrium
+from paper_repro.world.scene import Scene
 
 # One region slot of one point: the barrier terms are inactive far from the clouds anyway, and
 # the small slot keeps building the solvers quick.
@@ -67,7 +73,7 @@ def test_prediction_model_uses_the_prediction_step():
 def test_lq_feedback_is_the_first_input_of_the_nmpc_near_hover():
     """IPOPT on the full OCP (21), far from any cloud: u_0 − u_lin shrinks as the square of the
     deviation from hover, so the LQ feedback is its exact linearisation."""
-    from paper_repro.nmpc import TrackingNMPC
+    from paper_repro.solvers.ipopt import TrackingNMPC
 
     ctl = TrackingNMPC(SMALL, tol=1e-12)
     gain_x, gain_t = timeline.lq_feedback(SMALL)
@@ -216,7 +222,7 @@ def test_flown_lateral_decay_matches_the_predicted_time_constant(name):
     """Fly the rti solver in an empty workspace, lateral step at constant height; the slope of
     ln(distance) after the fast modes have died (τ ≤ 0.3 s) gives the flown τ. Measured:
     0.996, 1.039 and 0.977 of the prediction."""
-    from paper_repro.simulation import simulate
+    from paper_repro.sim.loop import simulate
 
     cfg, distance, duration, fit_from = FLIGHTS[name]
     target = np.array([0.0, 0.0, 5.0])
@@ -281,24 +287,24 @@ def test_flight_clock_against_the_paper():
 
 
 def test_timeline_study_flies_each_candidate_on_the_paper_mission():
-    study = timeline.timeline_study(quick=True)
-    assert [dict(s.labels)["candidate"] for s in study.specs] == list(timeline.CANDIDATES)
+    study = timeline_study(quick=True)
+    assert [dict(s.labels)["candidate"] for s in study.specs] == list(CANDIDATES)
     for spec in study.specs:
         sim = spec.config.simulation
         assert (sim.scenario, sim.kind, spec.max_steps) == ("paper", "mission",
-                                                           timeline.QUICK_STEPS)
+                                                           TIMELINE_QUICK_STEPS)
         assert spec.config.distance.metric == "smooth"
     by_label = {dict(s.labels)["candidate"]: s.config.nmpc for s in study.specs}
     assert by_label["printed"] == Config().nmpc
     assert by_label["N = 43"].horizon == 43
     assert by_label["h = 0.0118 s"].prediction_step == pytest.approx(0.0118)
     # The printed run shares its cache folder with `reproduce`'s smooth run.
-    from paper_repro.reproduce import run_specs
+    from paper_repro.studies.reproduce import run_specs
 
-    full = timeline.timeline_study(labels=["printed"]).specs[0]
+    full = timeline_study(labels=["printed"]).specs[0]
     assert full.directory() == run_specs()[0].directory()
 
 
 def test_unknown_candidate_is_named():
     with pytest.raises(ValueError, match="label"):
-        timeline.candidate_config("N = 99")
+        candidate_config("N = 99")

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from paper_repro.scene import Box, halton_cloud
-from paper_repro.tracking import RegionTracker, _chi2_quantile, centroid_of
+from paper_repro.world.shapes import Box, halton_cloud
+from paper_repro.world.tracking import RegionTracker, centroid_of, chi2_quantile
 
 TS = 0.01
 R_S = 3.0
@@ -220,7 +220,7 @@ def test_centroid_of():
 
 def test_the_gate_is_the_chi_square_quantile():
     # Known values: χ²(0.999) with 1, 2, 3 degrees of freedom; 2 dof is −2 ln(1 − p).
-    assert _chi2_quantile(0.999, 1) == pytest.approx(10.827566, rel=1e-6)
-    assert _chi2_quantile(0.999, 2) == pytest.approx(-2 * math.log(0.001), rel=1e-9)
-    assert _chi2_quantile(0.999, 3) == pytest.approx(16.266236, rel=1e-6)
-    assert _chi2_quantile(0.5, 4) == pytest.approx(3.356694, rel=1e-6)
+    assert chi2_quantile(0.999, 1) == pytest.approx(10.827566, rel=1e-6)
+    assert chi2_quantile(0.999, 2) == pytest.approx(-2 * math.log(0.001), rel=1e-9)
+    assert chi2_quantile(0.999, 3) == pytest.approx(16.266236, rel=1e-6)
+    assert chi2_quantile(0.5, 4) == pytest.approx(3.356694, rel=1e-6)

@@ -13,8 +13,21 @@ import pandas as pd
 import pytest
 
 from paper_repro import Config, NMPCParams
-from paper_repro import study as S
-from paper_repro import tuning as T
+from paper_repro.studies import tuning as T
+from paper_repro.studies.catalogue import passage_spec
+from paper_repro.studies.tuning_results import (
+    best_setups,
+    evaluate_heldout,
+    load_study,
+    printed_position,
+    trials_frame,
+)
+from paper_repro.studies.tuning_space import (
+    DEFAULT_OBJECTIVES,
+    finished_trials,
+    printed_params,
+    search_space,
+)
 
 TINY = Config(nmpc=NMPCParams(region_slots=1, points_per_region=64))
 SIGMA_ONLY = {"sigma": (0.4, 1.6, 0.05)}
@@ -60,8 +73,8 @@ def test_other_bad_input_is_named(kwargs, message, monkeypatch, tmp_path):
 
 
 def test_every_default_range_holds_the_printed_value_on_its_grid():
-    printed = T.printed_params()
-    for name, r in T.search_space().items():
+    printed = printed_params()
+    for name, r in search_space().items():
         assert r.values() is not None and np.any(np.isclose(r.values(), printed[name])), name
         assert r.why
 
@@ -109,7 +122,7 @@ def test_without_required_completion_only_stalls_count():
 def _study_by_hand(points):
     """An in-memory study of finished trials ``(sigma, chattering, time, constraints)``."""
     study = optuna.create_study(directions=["minimize", "minimize"])
-    study.set_user_attr("objectives", list(T.DEFAULT_OBJECTIVES))
+    study.set_user_attr("objectives", list(DEFAULT_OBJECTIVES))
     study.set_user_attr("space", {"sigma": [0.4, 1.6, 0.05]})
     dist = {"sigma": optuna.distributions.FloatDistribution(0.4, 1.6, step=0.05)}
     for sigma, chat, tm, con in points:
@@ -129,24 +142,24 @@ def test_an_infeasible_trial_is_never_reported_as_best():
         (1.2, 0.20, 45.0, ok),
         (1.4, 0.30, 70.0, ok),               # dominated
     ])
-    frame = T.trials_frame(study)
+    frame = trials_frame(study)
     infeasible = frame[frame["number"] == 1].iloc[0]
     assert not infeasible["feasible"] and not infeasible["pareto"]
     assert set(frame.loc[frame["pareto"], "number"]) == {0, 2, 3}
     # Optuna's own front (constraints from the system attribute) agrees.
     assert {t.number for t in study.best_trials} == {0, 2, 3}
-    best = T.best_setups(frame)
+    best = best_setups(frame)
     assert best["best_chattering"]["trial"] == 2 and best["best_time"]["trial"] == 3
-    pos = T.printed_position(frame)
+    pos = printed_position(frame)
     assert pos["on_front"] and pos["dominated_by"] == 0
     # The sampler sees the same constraints.
-    assert T._constraints(study.trials[1]) == [0.4, 1.0, 2.0]
+    assert T.trial_constraints(study.trials[1]) == [0.4, 1.0, 2.0]
 
 
 def test_no_feasible_trial_means_no_front_to_pick_from():
     study = _study_by_hand([(0.8, 0.1, 50.0, (0.1, 0.0, 1.0))])
     with pytest.raises(ValueError, match="no feasible trial"):
-        T.best_setups(T.trials_frame(study))
+        best_setups(trials_frame(study))
 
 
 # --- closed loop: resume --------------------------------------------------------------------
@@ -167,14 +180,14 @@ def test_a_resumed_study_continues_the_trial_count(tmp_path):
 
     with pytest.raises(DriverKilled):
         _tune(tmp_path, 4, callbacks=[stop_after_two])
-    first = T.load_study(tmp_path / "tuning")
-    done = {t.number: t.values for t in T._finished(first)}
+    first = load_study(tmp_path / "tuning")
+    done = {t.number: t.values for t in finished_trials(first)}
     assert sorted(done) == [0, 1]
     assert first.trials[0].params == {"sigma": 0.8}  # trial 0 is the printed set-up
     first.ask()  # a trial left running by a driver that was killed
 
     again = _tune(tmp_path, 4)
-    finished = T._finished(again.study)
+    finished = finished_trials(again.study)
     assert len(finished) == 4 and again.flown_trials == 2  # not 4: nothing started over
     assert {t.number: t.values for t in finished if t.number in done} == done
     assert min(t.number for t in finished if t.number not in done) > max(done)
@@ -192,13 +205,13 @@ def test_a_resumed_study_must_be_the_same_study(tmp_path):
 
 
 def test_heldout_scenes_are_never_training_scenes_and_shared_setups_fly_once(tmp_path):
-    setups = {"printed": T.printed_params(TINY), "best_time": T.printed_params(TINY)}
+    setups = {"printed": printed_params(TINY), "best_time": printed_params(TINY)}
     with pytest.raises(ValueError, match=r"held-out scenes must never be training .* \[3\]"):
-        T.evaluate_heldout(setups, seeds=(3,), train_seeds=(3,), workers=0)
-    table = T.evaluate_heldout(setups, seeds=(60,), max_steps=30, base=TINY, workers=0,
+        evaluate_heldout(setups, seeds=(3,), train_seeds=(3,), workers=0)
+    table = evaluate_heldout(setups, seeds=(60,), max_steps=30, base=TINY, workers=0,
                                out=tmp_path / "h", runs_dir=tmp_path / "runs",
                                log=lambda line: None)
     assert list(table["setup"]) == ["printed", "best_time"]
     assert table["result_dir"].nunique() == 1  # one flight serves both set-ups
-    spec = T.tuning_spec(T.printed_params(TINY), 60, 30, TINY)
-    assert spec.name == S.passage_spec(60, max_steps=30, base=TINY).name  # Monte Carlo's cache
+    spec = T.tuning_spec(printed_params(TINY), 60, 30, TINY)
+    assert spec.name == passage_spec(60, max_steps=30, base=TINY).name  # Monte Carlo's cache

@@ -9,11 +9,14 @@ import pytest
 
 from paper_repro import Config, DistanceParams, NMPCParams, SimulationParams, make_scene
 from paper_repro.config import BarrierParams, QuadrotorParams, SensorParams
-from paper_repro.nmpc import TrackingNMPC
-from paper_repro.ocp import OCP, check_visible
-from paper_repro.rti import RealTimeNMPC
-from paper_repro.safety import check_setup, setup_hazards
-from paper_repro.scene import Box, Cylinder, Difference, Lidar, Region, Union
+from paper_repro.problem.ocp import OCP
+from paper_repro.problem.scan import check_visible
+from paper_repro.sim.checks import check_setup, setup_hazards
+from paper_repro.solvers.ipopt import TrackingNMPC
+from paper_repro.solvers.rti import RealTimeNMPC
+from paper_repro.world.lidar import Lidar
+from paper_repro.world.scene import Region
+from paper_repro.world.shapes import Box, Cylinder, Difference, Union
 
 SMALL = NMPCParams(region_slots=1, points_per_region=48)
 
@@ -234,7 +237,7 @@ def test_solvers_refuse_a_bare_array(make, encounter):
 def test_cli_out_existing_file_fails_before_flying(tmp_path, capsys):
     """``--out`` naming an existing file is refused at once (it used to fly the mission and
     then die with a FileExistsError traceback)."""
-    from paper_repro.cli import main
+    from paper_repro.cli.main import main
 
     existing = tmp_path / "result"
     existing.write_text("")
@@ -251,7 +254,7 @@ def test_cli_out_existing_file_fails_before_flying(tmp_path, capsys):
 ])
 def test_cli_option_errors_are_one_line(argv, name, capsys):
     """argparse's errors print one line ``error: ...`` and return 2 (no usage dump)."""
-    from paper_repro.cli import main
+    from paper_repro.cli.main import main
 
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
@@ -359,7 +362,7 @@ def test_spurious_returns_lie_in_the_sphere_and_go_to_the_nearest_region():
 
 @pytest.mark.parametrize("state", [np.zeros(11), np.full(12, np.nan), [[0.0] * 12]])
 def test_initial_state_is_checked_before_anything_is_built(state, monkeypatch):
-    import paper_repro.simulation as sim
+    from paper_repro.sim import loop as sim
 
     monkeypatch.setattr(sim, "make_controller", lambda *a, **k: pytest.fail("built"))
     with pytest.raises(ValueError, match="initial_state must be a finite \\(12,\\) state"):

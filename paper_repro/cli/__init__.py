@@ -1,0 +1,17 @@
+"""The command line, ``python -m paper_repro COMMAND``: one module per command, each with its
+``HELP``, ``add_arguments(parser)`` and ``main(args)``.
+
+=================  ==================================================================
+``main``           the parser and the dispatch to the commands
+``args``           argument types with a stated accepted range, checked output folders
+``run``            fly one mission and save its result
+``scene``          print a scene and D_{η,σ} against ½d²
+``reproduce``      fly the paper's missions, run every notebook, write figures/
+``study``          fly a study of the catalogue, write its table and figures
+``tune``           tune the avoidance parameters with Optuna
+``golden``         fly the golden flights and compare or write them
+``readme``         write or check the README's tables
+=================  ==================================================================
+"""
+
+__all__ = []

@@ -1,0 +1,52 @@
+"""The committed evidence: the golden flights every evidence set is stamped with, and the README's
+tables formatted from the committed tables.
+
+=================  ==================================================================
+``golden``         the golden flights and the stamps every evidence set carries
+``readme``         the README's tables, formatted from the committed tables
+=================  ==================================================================
+"""
+
+from paper_repro.evidence.golden import (
+    EVIDENCE_SETS,
+    GOLDEN_FLIGHTS,
+    INPUT_TOLERANCE,
+    POSITION_TOLERANCE,
+    GoldenFlight,
+    check_golden,
+    command_line,
+    fly_golden,
+    golden_hash,
+    recomputed_golden_hash,
+    set_hash,
+    sha256_of,
+    stale_evidence,
+    stamp,
+    stamped_hash,
+    write_golden,
+)
+from paper_repro.evidence.readme import BLOCKS, blocks, markdown_table, readme_path, render
+
+__all__ = [
+    "BLOCKS",
+    "blocks",
+    "check_golden",
+    "command_line",
+    "EVIDENCE_SETS",
+    "fly_golden",
+    "GOLDEN_FLIGHTS",
+    "golden_hash",
+    "GoldenFlight",
+    "INPUT_TOLERANCE",
+    "markdown_table",
+    "POSITION_TOLERANCE",
+    "readme_path",
+    "recomputed_golden_hash",
+    "render",
+    "set_hash",
+    "sha256_of",
+    "stale_evidence",
+    "stamp",
+    "stamped_hash",
+    "write_golden",
+]

@@ -1,0 +1,287 @@
+"""The golden flights, and the stamp that ties every committed evidence set to them.
+
+The first rule of this package: every committed figure and table is what this commit's code
+makes. Two things enforce it.
+
+* **Golden flights** (:data:`GOLDEN_FLIGHTS`): a few short canonical closed loops (the paper
+  mission with each metric, the encounter with each metric, a random passage, the moving
+  ``crossing``, the IPOPT reference at one instant-rich window, the ground robot). Their
+  states and inputs are committed in ``figures/golden/<name>.npy`` and
+  ``figures/golden/golden.json`` holds the SHA-256 of each file and of the whole set, the
+  *golden hash*. ``tests/test_evidence.py`` flies them and compares against the committed
+  arrays (:func:`check_golden`, :data:`POSITION_TOLERANCE`): a change of code that moves a
+  flight fails there.
+* **Evidence stamps**: each committed evidence set (``figures/``, the ``paper-timeline``
+  preset, the timeline flights, every study folder, the tuning outputs, the fidelity table)
+  has an ``evidence.json`` that records the golden hash it was made with (:func:`stamp`,
+  written by the command that makes the set). A test fails when a stamp differs from the
+  current golden hash, so after ``python -m paper_repro golden --write`` every evidence set
+  must be regenerated too, in the same submission. The golden hash also enters every run's
+  cache key (:func:`paper_repro.studies.runs.run_key`), so regenerating the golden flights retires
+  every cached run and nothing stale is ever redrawn.
+
+A pure refactor leaves every golden flight within tolerance: the committed files, the hash,
+the stamps and the cache keys stay as they are, and nothing needs re-flying.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from paper_repro import paths
+from paper_repro.paths import golden_dir
+
+POSITION_TOLERANCE = 1e-9
+"""m: the largest position difference between a flight and its committed golden copy that
+still counts as the same flight (flights repeat bit for bit on one machine; the margin is for
+rounding between machines of the same kind)."""
+
+INPUT_TOLERANCE = 1e-6
+"""N (or the vehicle's input unit): the same for the inputs, whose rounding is amplified by
+the solver's conditioning."""
+
+
+@dataclass(frozen=True)
+class GoldenFlight:
+    """One canonical flight.
+
+    Attributes
+    ----------
+    name : file stem in ``figures/golden/``.
+    description : what it exercises.
+    scenario, kind, seed, metric, steps, solver, prediction : the run (see
+        :class:`~paper_repro.config.SimulationParams`, :class:`~paper_repro.config.NMPCParams`).
+    line_search : the damped real-time iteration (``NMPCParams.line_search``).
+    start : ``(other flight, step)``: start from the state that flight reached at that step
+        (a window rich in obstacles, flown with a slow solver); ``None``: the scene's start.
+    vehicle : ``"quadrotor"`` or ``"unicycle"`` (the ground robot's planar L-wall).
+    """
+
+    name: str
+    description: str
+    scenario: str = "paper"
+    kind: str = "mission"
+    seed: int = 7
+    metric: str = "smooth"
+    steps: int = 300
+    solver: str = "rti"
+    prediction: str = "static"
+    line_search: bool = False
+    start: tuple[str, int] | None = None
+    vehicle: str = "quadrotor"
+
+    def config(self):
+        """The :class:`~paper_repro.config.Config` this flight flies."""
+        from paper_repro.config import Config
+
+        if self.vehicle == "unicycle":
+            from paper_repro.vehicles.unicycle import unicycle_config
+
+            cfg = unicycle_config(self.metric)
+        else:
+            cfg = Config()
+            cfg = dataclasses.replace(
+                cfg, distance=dataclasses.replace(cfg.distance, metric=self.metric),
+                simulation=dataclasses.replace(cfg.simulation, scenario=self.scenario,
+                                               kind=self.kind, seed=self.seed,
+                                               max_steps=self.steps,
+                                               prediction=self.prediction))
+        return dataclasses.replace(cfg, nmpc=dataclasses.replace(
+            cfg.nmpc, solver=self.solver, line_search=self.line_search))
+
+
+GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
+    GoldenFlight("paper-smooth", "the paper mission's first 3 s, smoothed D (cruise: model, "
+                 "plant, tracking terms, the artificial equilibrium)"),
+    GoldenFlight("paper-euclidean", "the same with the Euclidean ½·min d²", metric="euclidean"),
+    GoldenFlight("encounter-smooth", "the encounter, a region in view from step 316: the "
+                 "smoothed penalty, the LiDAR, the capacity ladder", scenario="encounter",
+                 steps=700),
+    GoldenFlight("encounter-euclidean", "the same with the Euclidean metric, which switches "
+                 "its nearest point", scenario="encounter", metric="euclidean", steps=700),
+    GoldenFlight("reference-encounter-smooth", "IPOPT (the paper's solver) for 40 steps from "
+                 "step 600 of encounter-smooth", scenario="encounter", steps=40,
+                 solver="reference", start=("encounter-smooth", 600)),
+    GoldenFlight("passage-smooth-s003", "a random passage (nonconvex regions, finish line)",
+                 scenario="random", kind="passage", seed=3, steps=600),
+    GoldenFlight("crossing-smooth", "a region moving across the line, predicted by the "
+                 "oracle (velocities in the scan), the damped RTI (as the moving-obstacle "
+                 "studies fly)", scenario="crossing", steps=900, prediction="oracle",
+                 line_search=True),
+    GoldenFlight("ground-robot-smooth", "the unicycle round the L-wall (another vehicle, "
+                 "another output dimension)", steps=200, vehicle="unicycle"),
+)
+
+
+def fly_golden(flight: GoldenFlight, flown: dict | None = None) -> np.ndarray:
+    """Fly one golden flight; (K, n_x + n_u) array, row k = (x_k, u_k).
+
+    ``flown`` : arrays of flights already flown this call (for ``start``); the committed
+    copy of the parent is used when it is missing."""
+    from paper_repro.solvers.factory import make_controller
+
+    cfg = flight.config()
+    if flight.vehicle == "unicycle":
+        from paper_repro.vehicles.unicycle import unicycle_model
+        from paper_repro.world.planar import fly, planar_scene
+
+        run = fly(make_controller(cfg, unicycle_model()), planar_scene(), steps=flight.steps)
+        return np.hstack([run.x[:-1], run.u])
+    from paper_repro.sim.loop import simulate
+
+    initial = None
+    if flight.start is not None:
+        parent, step = flight.start
+        rows = (flown or {}).get(parent)
+        if rows is None:
+            rows = np.load(golden_dir() / f"{parent}.npy")
+        initial = rows[step, :12]
+    result = simulate(cfg, max_steps=flight.steps, progress=False, initial_state=initial)
+    return np.hstack([result.x[:-1], result.u])
+
+
+def check_golden(names=None) -> list[dict]:
+    """Fly the golden flights (all, or ``names``) and compare them with the committed copies.
+
+    Returns one dict per flight: ``name``, ``steps`` (flown / committed), ``position_error``
+    (m, max over the flight), ``input_error``, ``identical`` (bit for bit) and ``ok`` (same
+    length, within :data:`POSITION_TOLERANCE` and :data:`INPUT_TOLERANCE`)."""
+    flown, rows = {}, []
+    for flight in _select(names):
+        new = flown[flight.name] = fly_golden(flight, flown)
+        path = golden_dir() / f"{flight.name}.npy"
+        old = np.load(path) if path.is_file() else np.zeros((0, new.shape[1]))
+        npos = 3 if flight.vehicle == "quadrotor" else 2
+        nx = 12 if flight.vehicle == "quadrotor" else 3
+        same_shape = old.shape == new.shape
+        pos = float(np.abs(new[:, :npos] - old[:, :npos]).max()) if same_shape else np.inf
+        inp = float(np.abs(new[:, nx:] - old[:, nx:]).max()) if same_shape else np.inf
+        rows.append({"name": flight.name, "steps": f"{len(new)}/{len(old)}",
+                     "position_error": pos, "input_error": inp,
+                     "identical": bool(same_shape and np.array_equal(new, old)),
+                     "ok": bool(pos <= POSITION_TOLERANCE and inp <= INPUT_TOLERANCE),
+                     "flown": new})
+    return rows
+
+
+def write_golden(names=None, force: bool = False) -> list[dict]:
+    """Fly the golden flights and commit-ready write the ones that moved (or all, ``force``),
+    then ``golden.json``. A flight within tolerance keeps its file, so the golden hash only
+    changes when a flight does."""
+    folder = golden_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    rows = check_golden(names)
+    for row in rows:
+        if force or not row["ok"]:
+            _atomic_save(folder / f"{row['name']}.npy", row["flown"])
+            row["written"] = True
+    files = {f.name: sha256_of(folder / f"{f.name}.npy") for f in GOLDEN_FLIGHTS
+             if (folder / f"{f.name}.npy").is_file()}
+    payload = {"hash": set_hash(files), "files": files,
+               "position_tolerance_m": POSITION_TOLERANCE, "input_tolerance": INPUT_TOLERANCE,
+               "flights": {f.name: f.description for f in GOLDEN_FLIGHTS}}
+    _atomic_text(folder / "golden.json", json.dumps(payload, indent=1) + "\n")
+    return rows
+
+
+def golden_hash() -> str:
+    """The committed golden hash (``figures/golden/golden.json``), or ``"none"`` before the
+    golden flights exist."""
+    path = golden_dir() / "golden.json"
+    if not path.is_file():
+        return "none"
+    return json.loads(path.read_text())["hash"]
+
+
+def recomputed_golden_hash() -> str:
+    """The golden hash computed from the committed ``.npy`` files (equal to
+    :func:`golden_hash` unless a file was changed by hand)."""
+    folder = golden_dir()
+    return set_hash({f.name: sha256_of(folder / f"{f.name}.npy") for f in GOLDEN_FLIGHTS
+                      if (folder / f"{f.name}.npy").is_file()})
+
+
+EVIDENCE_SETS = (
+    "",  # figures/: the paper figures and summary.csv (reproduce)
+    "presets/paper-timeline",  # reproduce --preset paper-timeline
+    "studies/timeline",  # study timeline
+    "fidelity",  # benchmarks/fidelity.py
+    "studies/monte_carlo", "studies/eta_sweep", "studies/sensor_noise",
+    "studies/sensing_window", "studies/moving_obstacles", "studies/moving_obstacles_definition",
+    "tuning",  # tune
+)
+"""Every committed evidence set, as a folder under ``figures/``."""
+
+
+def stamp(folder, made_by: str) -> Path:
+    """Write ``folder/evidence.json``: the golden hash the set was made with, and the
+    command that made it. Call it last, after every file of the set is written."""
+    out = Path(folder) / "evidence.json"
+    text = json.dumps({"golden": golden_hash(), "made_by": made_by}, indent=1) + "\n"
+    _atomic_text(out, text)
+    return out
+
+
+def command_line() -> str:
+    """The command this process runs, as a user would type it (for :func:`stamp`)."""
+    import sys
+
+    argv = sys.argv[1:] if sys.argv and sys.argv[0].endswith("__main__.py") else sys.argv
+    head = "python -m paper_repro" if argv is not sys.argv else "python"
+    return " ".join([head, *argv])
+
+
+def stamped_hash(folder) -> str | None:
+    """The golden hash recorded in ``folder/evidence.json`` (``None`` without a stamp)."""
+    path = Path(folder) / "evidence.json"
+    return json.loads(path.read_text())["golden"] if path.is_file() else None
+
+
+def stale_evidence() -> list[str]:
+    """The evidence sets present in ``figures/`` whose stamp is missing or differs from the
+    golden hash (a set that is not there is missing, not stale: it shows nothing)."""
+    current = golden_hash()
+    return [name or "figures" for name in EVIDENCE_SETS
+            if (paths.figures_dir() / name).is_dir()
+            and stamped_hash(paths.figures_dir() / name) != current]
+
+
+def sha256_of(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def set_hash(files: dict) -> str:
+    text = json.dumps(files, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _atomic_save(path: Path, array: np.ndarray) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "wb") as fh:
+        np.save(fh, np.ascontiguousarray(array, dtype="<f8"))
+    os.replace(tmp, path)
+
+
+def _atomic_text(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+def _select(names) -> list[GoldenFlight]:
+    if not names:
+        return list(GOLDEN_FLIGHTS)
+    known = {f.name: f for f in GOLDEN_FLIGHTS}
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise ValueError(f"unknown golden flight(s) {unknown}; choose from {sorted(known)}")
+    # A flight that starts from another needs its parent flown first, in the same call.
+    wanted = set(names) | {known[n].start[0] for n in names if known[n].start}
+    return [f for f in GOLDEN_FLIGHTS if f.name in wanted]

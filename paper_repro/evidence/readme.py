@@ -1,0 +1,296 @@
+"""The README's numbers, formatted from the committed tables (never typed by hand).
+
+Each block of the README between ``<!-- begin NAME -->`` and ``<!-- end NAME -->`` is the
+markdown that :data:`BLOCKS` ``[NAME]`` renders from a committed table in ``figures/``.
+``python -m paper_repro readme`` writes them; ``tests/test_report.py`` fails when the README
+holds anything else, so a regenerated table and the prose that quotes it cannot part.
+Only what the flights determine is quoted; solve times live in the benchmarks' own output.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from pathlib import Path
+
+import pandas as pd
+
+from paper_repro import paths
+
+
+def summary() -> str:
+    """The paper mission, both presets: ``figures/summary.csv`` and the preset's."""
+    rows = []
+    for preset, folder in (("`paper` (N = 35)", paths.figures_dir()),
+                           ("`paper-timeline` (N = 43)",
+                            paths.figures_dir() / "presets" / "paper-timeline")):
+        table = pd.read_csv(folder / "summary.csv")
+        for r in table.itertuples():
+            rows.append([preset, "smoothed D" if r.metric == "smooth" else "Euclidean ½d²",
+                         f"{r.mission_time_s:,.1f} s", r.targets_reached,
+                         f"{r.failed_solves:,}", f"{r.tv_u_N:,.0f} N",
+                         _share(r.hf_energy_fraction), f"{r.du_sign_changes:,}",
+                         f"{r.max_abs_du_N:.2f} N", f"{r.min_clearance_m:.3f} m"])
+    return markdown_table(["preset", "run", "mission time", "targets", "failed solves",
+                      "total variation of u", "power > 5 Hz", "sign changes of Δu",
+                      "max |Δu|", "min clearance"], rows)
+
+
+def fidelity() -> str:
+    """``figures/fidelity/fidelity.csv``: every window, every solver."""
+    table = pd.read_csv(paths.figures_dir() / "fidelity" / "fidelity.csv")
+    rows = [[r.window, "rti (default)" if r.solver == "rti" else r.solver, _num(r.tv_per_s),
+             _ratio(r.tv_per_s_ratio),
+             f"{r.hf_share:.2f}", f"{r.sign_changes:,}", f"{r.max_du:.2f}",
+             f"{r.jumps_1N}", f"{r.min_clearance_m:.3f}", _metres(r.deviation_m),
+             f"{r.iteration_limit}"] for r in table.itertuples()]
+    return markdown_table(["window", "solver", "TV of u, N/s", "TV / IPOPT", "power > 5 Hz",
+                      "sign changes", "max |Δu|, N", "steps |Δu| > 1 N",
+                      "min clearance, m", "from IPOPT's path", "IPOPT at its limit"], rows)
+
+
+def monte_carlo() -> str:
+    """Rates and paired effects of ``figures/studies/monte_carlo/mc_summary.csv``."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "monte_carlo" / "mc_summary.csv")
+    rates = table[table["kind"] == "rate"].set_index(["event", "metric"])
+    events = [("completed", "passage completed"), ("collision", "collision (< 0.35 m)"),
+              ("stalled", "stalled (deadlock)"), ("step_limit", "step limit (150 s)"),
+              ("failed", "run failed")]
+    rows = [[label, *(_rate(rates.loc[(event, m)]) for m in ("smooth", "euclidean"))]
+            for event, label in events]
+    head = markdown_table(["", "smoothed D", "Euclidean ½d²"], rows)
+    paired = table[table["kind"] == "paired"]
+    return head + "\n\n" + _paired(paired, "smoothed", "Euclidean")
+
+
+def eta_sweep() -> str:
+    """``figures/studies/eta_sweep/eta_sweep_settings.csv``, one row per setting."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "eta_sweep" / "eta_sweep_settings.csv")
+    # The baseline, then η at the printed σ, then σ at the printed η.
+    printed_sigma = table.loc[table["metric"] == "smooth", "sigma"].mode().iloc[0]
+    order = (table["metric"] == "smooth").astype(int) + 2 * (table["sigma"] != printed_sigma) \
+        * (table["metric"] == "smooth")
+    table = table.assign(_order=order).sort_values(["_order", "eta", "sigma"])
+    rows = []
+    for r in table.itertuples():
+        name = ("Euclidean (η → 0)" if r.metric == "euclidean"
+                else f"η = {r.eta:g} m, σ = {r.sigma:g} m")
+        rows.append([name, f"{r.runs}", _share(r.hf_energy_fraction),
+                     f"{r.tv_u_rate_N_per_s:,.3g} N/s",
+                     _rate_of(r.completed_rate, r.completed_low, r.completed_high),
+                     _share(r.stalled_rate), _rate_of(r.collision_rate, r.collision_low,
+                                                      r.collision_high),
+                     f"{r.min_clearance_m:.2f} m"])
+    return markdown_table(["setting", "passages", "power > 5 Hz (median)", "TV of u (median)",
+                      "completed", "stalled", "collision", "min clearance (median)"], rows)
+
+
+def sensor_noise() -> str:
+    """``figures/studies/sensor_noise/sensor_noise_paired.csv``: Euclidean over smoothed, per
+    sensor."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "sensor_noise" /
+                        "sensor_noise_paired.csv")
+    parts = []
+    for sensor in ("perfect", "noisy"):
+        parts.append(f"*{sensor} LiDAR*\n\n" + _paired(table[table["sensor"] == sensor],
+                                                      "smoothed", "Euclidean"))
+    return "\n\n".join(parts)
+
+
+def sensing_window() -> str:
+    """``figures/studies/sensing_window/``: the paper mission with and without the window
+    (``sensing_window_mission.csv``), then the passages, one row per width
+    (``sensing_window_summary.csv``)."""
+    folder = paths.figures_dir() / "studies" / "sensing_window"
+    mission = pd.read_csv(folder / "sensing_window_mission.csv")
+    rows = [["paper mission", f"{r.window_m:g} m", f"{r.scan_changes:g}",
+             _share(r.scan_change_jump_share),
+             f"p90 {1e3 * r.du_scan_change_p90_N:.3g} / {1e3 * r.du_around_changes_p90_N:.3g} mN",
+             f"{r.mannwhitney_p:.2g}", f"{r.min_clearance_m:.3f} m", "—"]
+            for r in mission.itertuples()]
+    table = pd.read_csv(folder / "sensing_window_summary.csv")
+    rows += [[f"{r.runs} random passages (median)", f"{r.window_m:g} m", f"{r.scan_changes:g}",
+              _share(r.jump_share),
+              f"{1e3 * r.du_at_changes_N:.3g} / {1e3 * r.du_around_changes_N:.3g} mN", "",
+              f"{r.min_clearance_median_m:.3f} m", f"{r.tv_u_rate_N_per_s:.3g} N/s"]
+             for r in table.itertuples()]
+    return markdown_table(["run", "window w", "changes of the visible set",
+                      "share with a step > 10 mN", "|Δu| at / around", "Mann–Whitney p",
+                      "min clearance", "TV of u"], rows)
+
+
+def moving_obstacles() -> str:
+    """``figures/studies/moving_obstacles/``: collisions per prediction and metric."""
+    folder = paths.figures_dir() / "studies" / "moving_obstacles"
+    rates = pd.read_csv(folder / "moving_obstacles_rates.csv").set_index(
+        ["prediction", "metric", "event"])
+    summary = pd.read_csv(folder / "moving_obstacles_summary.csv").set_index(
+        ["prediction", "metric"])
+    rows = []
+    for prediction in ("static", "oracle", "kalman"):
+        row = [prediction]
+        for metric in ("smooth", "euclidean"):
+            c = rates.loc[(prediction, metric, "collision")]
+            row.append(f"{int(c.k)}/{int(c.n)} [{100 * c.low:.0f}, {100 * c.high:.0f}] %")
+        s, e = summary.loc[(prediction, "smooth")], summary.loc[(prediction, "euclidean")]
+        row += [f"{s.min_clearance_median_m:.3f} / {e.min_clearance_median_m:.3f} m",
+                f"{s.min_clearance_min_m:.3f} / {e.min_clearance_min_m:.3f} m",
+                f"{s.tv_u_rate_median_N_per_s:.3g} / {e.tv_u_rate_median_N_per_s:.3g} N/s",
+                f"{_share(s.completed)} / {_share(e.completed)}",
+                f"{int(s.failed_solves):,} / {int(e.failed_solves):,}"]
+        rows.append(row)
+    return markdown_table(["prediction", "collisions, smoothed", "collisions, Euclidean",
+                      "min clearance, median (smoothed / Euclidean)", "closest approach",
+                      "TV of u, median", "completed", "failed solves"], rows)
+
+
+def timeline() -> str:
+    """``figures/studies/timeline/timeline_flights.csv``: the candidates flown."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "timeline" / "timeline_flights.csv")
+    rows = [[r.candidate, f"{r.predicted_s:,.0f} s", f"{r.mission_time_s:,.1f} s",
+             f"{r.first_target_s:,.0f} s", r.avoidance, f"{r.min_clearance_m:.2f} m",
+             f"{r.tv_u_N:,.0f} N"] for r in table.itertuples()]
+    return markdown_table(["candidate", "linear loop", "mission", "first target",
+                      "cloud in view", "min clearance", "total variation of u"], rows)
+
+
+def tuning() -> str:
+    """``figures/tuning/``: the front (``tuning_pareto.csv``) and the held-out passages per
+    set-up (``tuning_heldout_summary.csv``), then the chosen set-up against the printed one,
+    scene by scene."""
+    folder = paths.figures_dir() / "tuning"
+    front = pd.read_csv(folder / "tuning_pareto.csv")
+    rows = [[f"{r.number}", f"{r.eta:g} m", f"{r.sigma:g} m", f"{r.d_min:g} m²",
+             f"{r.kappa:g}", f"{r.mu:g}", f"{r.delta:g}", _share(r.hf_energy_fraction),
+             f"{r.time_to_complete_s:.1f} s"] for r in front.itertuples()]
+    parts = ["*The front (training passages)*\n\n" + markdown_table(
+        ["trial", "η", "σ", "d_min", "κ", "μ", "δ", "power > 5 Hz", "time to complete"], rows)]
+    table = pd.read_csv(folder / "tuning_heldout_summary.csv")
+    rates = table[table["kind"] == "rate"].set_index(["setup", "event"])
+    setups = list(dict.fromkeys(rates.index.get_level_values(0)))
+    rows = [[label, *(_rate(rates.loc[(s, event)]) for s in setups)]
+            for event, label in (("completed", "completed"), ("collision", "collision"),
+                                 ("stalled", "stalled"), ("step_limit", "step limit"))]
+    parts.append("*Held-out passages*\n\n" + markdown_table(["", *setups], rows))
+    paired = table[(table["kind"] == "paired") & (table["setup"] == "best_chattering")]
+    paired = paired.rename(columns={"median_printed": "median_smooth",
+                                    "median_best_chattering": "median_euclidean"})
+    parts.append("*best_chattering against printed, per held-out scene*\n\n"
+                 + _paired(paired, "printed", "best_chattering"))
+    return "\n\n".join(parts)
+
+
+def regeneration() -> str:
+    """Every evidence set: the command that made it (its ``evidence.json``) and how long it
+    took on the machine that made it (its ``timings.json``)."""
+    import json
+
+    from paper_repro.evidence.golden import EVIDENCE_SETS
+
+    rows = []
+    for name in EVIDENCE_SETS:
+        folder = paths.figures_dir() / name
+        if not folder.is_dir():
+            continue
+        stamp, timing = folder / "evidence.json", folder / "timings.json"
+        made_by = json.loads(stamp.read_text())["made_by"] if stamp.is_file() else "—"
+        wall = "—"
+        if timing.is_file():
+            data = json.loads(timing.read_text())
+            seconds = data.get("wall_time_s", data.get("wall_time_s_last_call"))
+            wall = f"{seconds / 60:.1f} min" if seconds else "—"
+        rows.append([f"`figures/{name}`" if name else "`figures/`", f"`{made_by}`", wall])
+    return markdown_table(["evidence set", "made by", "wall time (2 cores, last run)"], rows)
+
+
+MACHINE_BLOCKS = frozenset({"regeneration"})
+"""Blocks quoting what the machine measured: rendered like the others, never asserted (they
+change with every regeneration)."""
+
+BLOCKS: dict[str, Callable[[], str]] = {
+    "regeneration": regeneration,
+    "summary": summary, "fidelity": fidelity, "monte_carlo": monte_carlo,
+    "eta_sweep": eta_sweep, "sensor_noise": sensor_noise, "sensing_window": sensing_window,
+    "moving_obstacles": moving_obstacles, "timeline": timeline, "tuning": tuning}
+"""Every generated block of the README, by name."""
+
+_BLOCK = re.compile(r"(<!-- begin (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-- end (?P=name) -->)",
+                    re.S)
+
+
+def render(text: str) -> str:
+    """``text`` with every block replaced by what :data:`BLOCKS` renders now."""
+    def replace(match):
+        name = match["name"]
+        if name not in BLOCKS:
+            raise ValueError(f"README block {name!r} is unknown; known: {sorted(BLOCKS)}")
+        try:
+            body = BLOCKS[name]()
+        except FileNotFoundError as exc:
+            raise ValueError(f"README block {name!r} needs {exc.filename}, which does not exist "
+                             "(regenerate its evidence set first)") from exc
+        return f"{match[1]}{body.rstrip()}\n{match[4]}"
+    return _BLOCK.sub(replace, text)
+
+
+def blocks(text: str) -> dict[str, str]:
+    """The blocks of ``text``, by name (their current contents)."""
+    return {m["name"]: m["body"] for m in _BLOCK.finditer(text)}
+
+
+def readme_path() -> Path:
+    return paths.repo_root() / "README.md"
+
+
+# --- formatting -----------------------------------------------------------------------------
+
+def markdown_table(header: list[str], rows: list[list]) -> str:
+    def cell(c) -> str:
+        return str(c).replace("|", "\\|")  # a bar inside a cell (|Δu|) must not split it
+
+    lines = ["| " + " | ".join(map(cell, header)) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(map(cell, row)) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def _share(x: float) -> str:
+    return f"{100 * x:.1f} %" if 0 < x < 0.01 else f"{100 * x:.0f} %"
+
+
+def _rate(r) -> str:
+    return _rate_of(r["rate"], r["low"], r["high"], int(r["k"]), int(r["n"]))
+
+
+def _rate_of(rate, low, high, k: int | None = None, n: int | None = None) -> str:
+    count = f"{k}/{n}, " if k is not None else ""
+    return f"{count}{100 * rate:.0f} % [{100 * low:.0f}, {100 * high:.0f}]"
+
+
+def _ratio(x: float) -> str:
+    return "—" if pd.isna(x) else f"×{x:.3g}"
+
+
+def _metres(x: float) -> str:
+    if pd.isna(x) or x == 0:
+        return "—"
+    if x < 0.01:
+        return f"{1e3 * x:.2g} mm"
+    return f"{100 * x:.2g} cm" if x < 1 else f"{x:.2g} m"
+
+
+def _num(x: float) -> str:
+    return f"{x:,.0f}" if abs(x) >= 1000 else f"{x:.3g}"
+
+
+def _paired(table: pd.DataFrame, a: str, b: str) -> str:
+    """Paired effects (``analysis.paired``; its columns ``median_smooth`` and
+    ``median_euclidean`` hold the medians of ``a`` and ``b``)."""
+    rows = []
+    for r in table.itertuples():
+        effect = (f"×{_num(r.median_effect)} [{_num(r.low)}, {_num(r.high)}]"
+                  if r.effect.startswith("ratio")
+                  else f"{r.median_effect:+.3g} [{r.low:+.3g}, {r.high:+.3g}]")
+        rows.append([r.label, _num(r.median_smooth), _num(r.median_euclidean), effect,
+                     f"{r.wilcoxon_p:.2g}", f"{int(r.scenes)}"])
+    return markdown_table(["measure (median over scenes)", a, b, f"{b} vs {a}, per scene",
+                      "Wilcoxon p", "scenes"], rows)

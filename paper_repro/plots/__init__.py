@@ -1,0 +1,138 @@
+"""Figures, drawn from saved results and tables (nothing here simulates).
+
+=================  ==================================================================
+``common``         colours, axes helpers, decimation, :func:`save_figure`
+``flight``         the paper's figures of one flight, and summary figures
+``distance``       the smoothed distance on a 2-D slice (the tutorial)
+``animation``      animations of a flight
+``studies``        rates, paired differences, ECDFs, sweeps of a study table
+``clock``          the mission's clock
+``sensing``        the smooth sensing window
+``moving``         moving obstacles and their prediction
+``tuning``         the tuning's front, importances and held-out comparison
+=================  ==================================================================
+"""
+
+from paper_repro.plots.animation import animate_flight, save_animation
+from paper_repro.plots.clock import plot_clock_levers, plot_flight_clocks
+from paper_repro.plots.common import (
+    AXIS_LABELS,
+    CLOUD_COLOR,
+    MAX_POINTS,
+    SPHERE_COLOR,
+    axes3d_or_new,
+    axes_column,
+    axes_or_new,
+    axes_row,
+    draw_sphere,
+    envelope_indices,
+    save_figure,
+    stride_indices,
+)
+from paper_repro.plots.distance import (
+    plot_distance_slice,
+    plot_eta_sigma,
+    plot_gradient_field,
+    plot_half_squared_limit,
+    slice_grid,
+    slice_through,
+)
+from paper_repro.plots.flight import (
+    avoidance_window,
+    lidar_instants,
+    mark_start_and_targets,
+    plot_flight_3d,
+    plot_input_spectrum,
+    plot_projection,
+    plot_solve_times,
+    plot_states,
+    plot_thrusts,
+    plot_tracking_errors,
+    steps_in,
+    workspace_limits,
+)
+from paper_repro.plots.moving import (
+    GHOST_COLOR,
+    PREDICTION_COLOURS,
+    animate_crossing,
+    plot_clearance_time,
+    plot_crossing_closest,
+    plot_prediction_study,
+    prediction_velocities,
+)
+from paper_repro.plots.sensing import (
+    plot_scan_change_du,
+    plot_scan_change_study,
+    plot_scan_change_thrusts,
+    plot_sensing_window,
+    scan_change_times,
+)
+from paper_repro.plots.studies import (
+    METRIC_COLOURS,
+    plot_clearance_ecdf,
+    plot_paired,
+    plot_paired_by,
+    plot_rates,
+    plot_study_solve_times,
+    plot_sweep,
+)
+from paper_repro.plots.tuning import plot_front, plot_heldout, plot_importances
+
+__all__ = [
+    "animate_crossing",
+    "animate_flight",
+    "avoidance_window",
+    "axes3d_or_new",
+    "axes_column",
+    "axes_or_new",
+    "axes_row",
+    "AXIS_LABELS",
+    "CLOUD_COLOR",
+    "draw_sphere",
+    "envelope_indices",
+    "GHOST_COLOR",
+    "lidar_instants",
+    "mark_start_and_targets",
+    "MAX_POINTS",
+    "METRIC_COLOURS",
+    "plot_clearance_ecdf",
+    "plot_clearance_time",
+    "plot_clock_levers",
+    "plot_crossing_closest",
+    "plot_distance_slice",
+    "plot_eta_sigma",
+    "plot_flight_3d",
+    "plot_flight_clocks",
+    "plot_front",
+    "plot_gradient_field",
+    "plot_half_squared_limit",
+    "plot_heldout",
+    "plot_importances",
+    "plot_input_spectrum",
+    "plot_paired",
+    "plot_paired_by",
+    "plot_prediction_study",
+    "plot_projection",
+    "plot_rates",
+    "plot_scan_change_du",
+    "plot_scan_change_study",
+    "plot_scan_change_thrusts",
+    "plot_sensing_window",
+    "plot_solve_times",
+    "plot_states",
+    "plot_study_solve_times",
+    "plot_sweep",
+    "plot_thrusts",
+    "plot_tracking_errors",
+    "PREDICTION_COLOURS",
+    "prediction_velocities",
+    "save_animation",
+    "save_figure",
+    "scan_change_times",
+    "slice_grid",
+    "slice_through",
+    "SPHERE_COLOR",
+    "steps_in",
+    "stride_indices",
+    "workspace_limits",
+]

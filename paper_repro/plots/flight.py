@@ -1,0 +1,269 @@
+"""The paper's figures of one flight: the 3-D flight, projections, thrusts, tracking errors,
+states, and the summary figures of several flights."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from paper_repro.analysis import metrics
+from paper_repro.plots.common import (
+    _LINESTYLES,
+    AXIS_LABELS,
+    CLOUD_COLOR,
+    MAX_POINTS,
+    axes3d_or_new,
+    axes_column,
+    axes_or_new,
+    draw_sphere,
+    envelope_indices,
+    stride_indices,
+)
+from paper_repro.world.scene import WORKSPACE_LOWER, WORKSPACE_UPPER
+
+# --- figures of the paper -------------------------------------------------------------------
+
+def plot_flight_3d(result, scene, ax=None, sphere_steps=None, n_spheres: int = 4,
+                   max_points: int = MAX_POINTS):
+    """Fig. 1: 3-D flight (black), clouds (red), translucent LiDAR spheres (blue), start, targets.
+
+    Parameters
+    ----------
+    result : SimulationResult.   scene : the Scene it flew in.
+    ax : a 3-D Axes to draw into (a new figure if omitted).
+    sphere_steps : steps at which to draw the LiDAR sphere; by default
+        :func:`lidar_instants` (closest approach to each region, else evenly spaced).
+    n_spheres : number of spheres when ``sphere_steps`` is None.
+    max_points : cap on drawn trajectory points.
+    """
+    fig, ax = axes3d_or_new(ax)
+    pos = result.x[:, :3]
+    for i, cloud in enumerate(scene.clouds):
+        ax.scatter(*cloud.T, s=2, color=CLOUD_COLOR, alpha=0.6, depthshade=False,
+                   label="point clouds" if i == 0 else None)
+    idx = stride_indices(len(pos), max_points)
+    ax.plot(*pos[idx].T, color="black", lw=1.2, label="trajectory")
+    if sphere_steps is None:
+        sphere_steps = lidar_instants(result, scene, n_spheres)
+    r_s = result.config.simulation.lidar_range
+    for j, k in enumerate(sphere_steps):
+        draw_sphere(ax, pos[k], r_s, label=f"LiDAR range ($r_s$ = {r_s:g} m)" if j == 0 else None)
+    mark_start_and_targets(ax, scene, three_d=True)
+    workspace_limits(ax, three_d=True)
+    ax.legend(loc="upper left", fontsize="small")
+    return fig
+
+
+def plot_projection(result, scene, plane: str = "xz", ax=None, max_points: int = MAX_POINTS):
+    """Figs. 2 and 3: the trajectory and the clouds projected onto the XZ or XY plane."""
+    if plane not in ("xz", "xy", "yz"):
+        raise ValueError(f"plane must be 'xz', 'xy' or 'yz', got {plane!r}")
+    axes_idx = ["xyz".index(c) for c in plane]
+    fig, ax = axes_or_new(ax, figsize=(7, 4.5 if plane == "xy" else 3.5))
+    for i, cloud in enumerate(scene.clouds):
+        ax.scatter(cloud[:, axes_idx[0]], cloud[:, axes_idx[1]], s=3, color=CLOUD_COLOR,
+                   alpha=0.6, lw=0, label="point clouds" if i == 0 else None)
+    pos = result.x[:, :3]
+    idx = stride_indices(len(pos), max_points)
+    ax.plot(pos[idx, axes_idx[0]], pos[idx, axes_idx[1]], color="black", lw=1.2,
+            label="trajectory")
+    start = np.asarray(scene.start, float)
+    targets = np.atleast_2d(np.asarray(scene.targets, float))
+    ax.plot(start[axes_idx[0]], start[axes_idx[1]], "o", color="tab:green", label="start")
+    ax.plot(targets[:, axes_idx[0]], targets[:, axes_idx[1]], "*", ms=11, color="tab:purple",
+            label="targets")
+    ax.set_xlim(WORKSPACE_LOWER[axes_idx[0]], WORKSPACE_UPPER[axes_idx[0]])
+    ax.set_ylim(WORKSPACE_LOWER[axes_idx[1]], WORKSPACE_UPPER[axes_idx[1]])
+    ax.set_aspect("equal")
+    ax.set_xlabel(AXIS_LABELS[axes_idx[0]])
+    ax.set_ylabel(AXIS_LABELS[axes_idx[1]])
+    ax.set_title(f"projection onto the {plane.upper()}-plane")
+    ax.legend(loc="best", fontsize="small")
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def plot_thrusts(result, axes=None, max_points: int = MAX_POINTS, t_range=None):
+    """Figs. 4 and 8: thrusts f1..f4 (N) against time, with the artificial input u_a (dashed).
+
+    ``axes`` : four Axes (a new 4×1 figure if omitted). ``t_range`` : (t0, t1) s to draw only
+    part of the run, e.g. :func:`avoidance_window`.
+    """
+    fig, axes = axes_column(axes, 4, figsize=(7, 6.5))
+    k = steps_in(result, t_range)
+    t, u, u_a = result.t[k], result.u[k], result.u_a[k]
+    for i, ax in enumerate(axes):
+        idx = envelope_indices(u[:, i], max_points)
+        ax.plot(t[idx], u[idx, i], color="tab:blue", lw=0.8, label=f"$f_{i + 1}$")
+        idx = envelope_indices(u_a[:, i], max_points)
+        ax.plot(t[idx], u_a[idx, i], "--", color="tab:orange", lw=1.0,
+                label=f"$u_{{a,{i + 1}}}$")
+        ax.set_ylabel(f"$f_{i + 1}$ [N]")
+        ax.legend(loc="upper right", fontsize="small", ncol=2)
+        ax.grid(alpha=0.3)
+        _mark_target_switches(ax, result, t)
+    axes[-1].set_xlabel("t [s]")
+    axes[0].set_title(f"rotor thrusts ({result.config.distance.metric} distance)")
+    return fig
+
+
+def plot_tracking_errors(result, ax=None, max_points: int = MAX_POINTS, t_range=None,
+                         signed: bool = True):
+    """Figs. 5 and 7: the output tracking errors e_x, e_y, e_z (m), e = y − y_t.
+
+    As the paper defines them, signed: e_x = x_I − x_t (its axes go negative), so an
+    approach from the target's negative side shows as a negative error rising to 0.
+    ``signed=False`` draws |e_x|, |e_y|, |e_z| instead, easier to read on a log scale or when
+    only the size matters. y_t is the set-point active at each step; dotted lines mark the
+    target switches. ``t_range`` : (t0, t1) s to draw only part of the run.
+    """
+    fig, ax = axes_or_new(ax, figsize=(7, 3.5))
+    k = steps_in(result, t_range)
+    e = metrics.tracking_error(result)[k]
+    t, e = result.t[k], (e if signed else np.abs(e))
+    for i, name in enumerate("xyz"):
+        idx = envelope_indices(e[:, i], max_points)
+        label = f"$e_{name}$" if signed else f"$|e_{name}|$"
+        ax.plot(t[idx], e[idx, i], lw=1.0, label=label)
+    if signed:
+        ax.axhline(0.0, color="grey", lw=0.6)
+    _mark_target_switches(ax, result, t)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("error [m]" if signed else "absolute error [m]")
+    ax.set_title(f"output tracking error ({result.config.distance.metric} distance)")
+    ax.legend(loc="upper right", fontsize="small")
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def plot_states(result, axes=None, max_points: int = MAX_POINTS, t_range=None):
+    """Fig. 6: position x, y, z (m) against time with the artificial state y_a and the target.
+
+    ``t_range`` : (t0, t1) s to draw only part of the run.
+    """
+    fig, axes = axes_column(axes, 3, figsize=(7, 5.5))
+    k = steps_in(result, t_range)
+    t, pos, pos_a = result.t[k], result.x[:-1, :3][k], result.x_a[k, :3]
+    target = np.asarray(result.targets, float)[np.asarray(result.target_index, int)[k]]
+    for i, ax in enumerate(axes):
+        name = "xyz"[i]
+        idx = envelope_indices(pos[:, i], max_points)
+        ax.plot(t[idx], pos[idx, i], color="black", lw=1.0, label=f"${name}_\\mathcal{{I}}$")
+        idx = envelope_indices(pos_a[:, i], max_points)
+        ax.plot(t[idx], pos_a[idx, i], "--", color="tab:orange", lw=1.0, label=f"${name}_a$")
+        idx = stride_indices(len(t), max_points)
+        ax.plot(t[idx], target[idx, i], ":", color="tab:purple", lw=1.0, label=f"${name}_t$")
+        ax.set_ylabel(f"{name} [m]")
+        ax.legend(loc="upper right", fontsize="small", ncol=3)
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("t [s]")
+    axes[0].set_title(f"UAV position ({result.config.distance.metric} distance)")
+    return fig
+
+
+def avoidance_window(result, half_width: float = 10.0) -> tuple[float, float]:
+    """(t0, t1) s: ``half_width`` seconds either side of the closest approach to a cloud (the
+    step of minimum clearance), clipped to the run; for a zoomed view of the avoidance."""
+    t = np.asarray(result.t, float)
+    tc = t[int(np.argmin(result.clearance))]
+    return float(max(t[0], tc - half_width)), float(min(t[-1], tc + half_width))
+
+
+# --- summary figures ------------------------------------------------------------------------
+
+def plot_solve_times(results, ax=None, max_points: int = MAX_POINTS):
+    """Empirical distribution (CDF) of the solve times of each run, ms, log scale."""
+    fig, ax = axes_or_new(ax, figsize=(6, 3.5))
+    for r, ls in zip(results, _LINESTYLES):
+        ms = np.sort(np.asarray(r.solve_time) * 1e3)
+        idx = stride_indices(len(ms), max_points)
+        ax.step(ms[idx], (idx + 1) / len(ms), where="post", ls=ls,
+                label=f"{r.config.distance.metric} (median {np.median(ms):.2g} ms)")
+    ax.set_xscale("log")
+    ax.set_xlabel("solve time [ms]")
+    ax.set_ylabel("fraction of steps")
+    ax.set_title("NMPC solve times")
+    ax.legend(loc="lower right", fontsize="small")
+    ax.grid(alpha=0.3, which="both")
+    return fig
+
+
+def plot_input_spectrum(results, cutoff_hz: float = metrics.DEFAULT_CUTOFF_HZ, ax=None):
+    """Power spectrum of the thrusts (:func:`~paper_repro.analysis.metrics.input_spectrum`, summed
+    over
+    the rotors) with the cut-off marked: ``hf_energy_fraction`` is the share of the power to
+    the right of the dashed line."""
+    fig, ax = axes_or_new(ax, figsize=(6, 3.5))
+    for r, ls in zip(results, _LINESTYLES):
+        freqs, psd = metrics.input_spectrum(r.u, r.config.nmpc.ts)
+        if len(freqs) < 2:
+            continue
+        ax.loglog(freqs[1:], psd[1:] + 1e-30, lw=0.9, ls=ls, label=r.config.distance.metric)
+    ax.axvline(cutoff_hz, ls="--", color="gray", label=f"cut-off {cutoff_hz:g} Hz")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("power [N²/Hz]")
+    ax.set_title("spectrum of the thrusts")
+    ax.legend(loc="lower left", fontsize="small")
+    ax.grid(alpha=0.3, which="both")
+    return fig
+
+
+def lidar_instants(result, scene, n: int = 4) -> list[int]:
+    """Steps at which to draw the LiDAR sphere: the closest approach to each region the UAV
+    comes within range of, then evenly spaced steps at least r_s apart, ``n`` at most."""
+    pos = result.x[:, :3]
+    r_s = result.config.simulation.lidar_range
+    chosen = []
+    for cloud in scene.clouds:
+        d = cKDTree(cloud).query(pos)[0]
+        k = int(np.argmin(d))
+        if d[k] <= r_s:
+            chosen.append(k)
+    # Fill up with evenly spaced instants, skipping any whose sphere would overlap another's
+    # centre (a short run gets a single sphere rather than a stack of them).
+    for k in np.linspace(0, len(pos) - 1, n).round().astype(int):
+        if len(chosen) >= n:
+            break
+        if all(np.linalg.norm(pos[k] - pos[c]) >= r_s for c in chosen):
+            chosen.append(int(k))
+    return sorted(chosen[:n])
+
+
+def mark_start_and_targets(ax, scene, three_d: bool):
+    start = np.asarray(scene.start, float)
+    targets = np.atleast_2d(np.asarray(scene.targets, float))
+    kw = {"depthshade": False} if three_d else {}
+    ax.scatter(*start, s=40, marker="o", color="tab:green", label="start", **kw)
+    ax.scatter(*targets.T, s=90, marker="*", color="tab:purple", label="targets", **kw)
+
+
+def workspace_limits(ax, three_d: bool):
+    lo, hi = WORKSPACE_LOWER, WORKSPACE_UPPER
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_xlabel(AXIS_LABELS[0])
+    ax.set_ylabel(AXIS_LABELS[1])
+    if three_d:
+        ax.set_zlim(lo[2], hi[2])
+        ax.set_zlabel(AXIS_LABELS[2])
+        ax.set_box_aspect(tuple(hi - lo))
+
+
+def _mark_target_switches(ax, result, t):
+    """Dotted lines at the target switches that fall inside the drawn times ``t``."""
+    ts = result.config.nmpc.ts
+    for k in np.asarray(result.reached)[:-1]:
+        if k >= 0 and len(t) and t[0] <= k * ts <= t[-1]:
+            ax.axvline(k * ts, ls=":", color="gray", lw=1.0)
+
+
+def steps_in(result, t_range) -> np.ndarray:
+    """Indices of the steps with t in ``t_range`` (all steps when None)."""
+    t = np.asarray(result.t, float)
+    if t_range is None:
+        return np.arange(len(t))
+    t0, t1 = t_range
+    k = np.flatnonzero((t >= t0) & (t <= t1))
+    if len(k) == 0:
+        raise ValueError(f"t_range {t_range!r} holds no step of the run ({t[0]:g}-{t[-1]:g} s)")
+    return k

@@ -1,0 +1,230 @@
+"""The LiDAR scan as parameters of problem (21): a fixed number of region slots of a fixed
+number of points, and the one accepted form of a scan."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from paper_repro.problem import distance as dist
+from paper_repro.validation import as_vector
+
+PAD_LOG_WEIGHT = -1e30
+"""log w of a padding point of a slot: exp(log w) = 0, so padding never weighs in."""
+
+_FAR_AWAY = 1e3  # coordinate of the single dummy point of an inactive slot (its F is exactly 0)
+
+
+# --- the LiDAR scan as parameters --------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ScanLayout:
+    """How a LiDAR scan enters the problem: ``slots`` region slots of ``capacity`` points.
+
+    Per slot the parameters are (points (capacity, p) column-major, ln W (capacity,), ln V,
+    active) for the smooth metric and (points, mask (capacity,), active) for the Euclidean
+    one. Unused point slots have ln W = −1e30 (mask 0), so their terms are exactly zero; an
+    unused region slot holds one dummy point and active = 0, which multiplies its penalty. W
+    and V are computed from the visible points (the vehicle only knows what is in range).
+
+    With a sensing window (``window`` > 0, smooth metric) each visible point is weighted by
+    ψ(r), r its range from the sensor (the vehicle's position), in the centroid, W and V
+    (:func:`~paper_repro.problem.distance.sensing_window`): ln ψ is folded into ln W, so the
+    solvers'
+    expressions are unchanged and a point at the edge of the range contributes nothing.
+
+    Attributes
+    ----------
+    metric : ``"smooth"`` or ``"euclidean"``.  eta, sigma : η, σ, m.  d_min : m².
+    slots : region slots.  capacity : points per slot.  dim : p, 3 or 2.
+    window : w, m (0: off).  sensor_range : r_s, m.
+    moving : each slot also carries the region's predicted velocity v (p,), m/s, after
+        ``active``; the region at τ s after the scan is the scanned cloud moved by v·τ.
+    """
+
+    metric: str
+    eta: float
+    sigma: float
+    d_min: float
+    slots: int
+    capacity: int
+    dim: int = 3
+    window: float = 0.0
+    sensor_range: float = 3.0
+    moving: bool = False
+
+    @property
+    def size(self) -> int:
+        """Number of parameters of a whole scan."""
+        per_point = self.dim + 1
+        per_slot = self.capacity * per_point + (2 if self.metric == "smooth" else 1)
+        return self.slots * (per_slot + (self.dim if self.moving else 0))
+
+    def with_capacity(self, capacity: int) -> ScanLayout:
+        return dataclasses.replace(self, capacity=capacity)
+
+    def pack(self, visible: Sequence[np.ndarray], position, velocities=None) -> np.ndarray:
+        """Pack a LiDAR scan into the parameter layout.
+
+        Parameters
+        ----------
+        visible : per region, the (k_i, p) visible points (see :func:`check_visible`); regions
+            with none are skipped.
+        position : (p,) position of the vehicle, m. If more regions are visible than there are
+            slots, the nearest regions are kept; if a region shows more points than a slot
+            holds, the nearest points are kept.
+        velocities : with a ``moving`` layout, one (p,) predicted velocity per region of
+            ``visible``, m/s (``None``: all at rest).
+
+        Returns
+        -------
+        (size,) array.
+        """
+        slots, cap, dim = self.slots, self.capacity, self.dim
+        ref = as_vector("position", position, dim)
+        visible = check_visible(visible, dim)
+        if velocities is not None and not self.moving:
+            raise ValueError("velocities need a layout built for moving regions (a controller "
+                             "built with simulation.prediction 'oracle' or 'kalman')")
+        if velocities is None:
+            velocities = [np.zeros(dim)] * len(visible)
+        elif len(velocities) != len(visible):
+            raise ValueError(f"velocities must hold one ({dim},) array per region of visible "
+                             f"({len(visible)}), got {len(velocities)}")
+        # Per region in view: (points, squared ranges, ln ψ or None, velocity).
+        seen = []
+        for i, (v, vel) in enumerate(zip(visible, velocities)):
+            if not len(v):
+                continue
+            sq = np.sum((v - ref) ** 2, axis=1)
+            log_p = None
+            if self.window > 0 and self.metric == "smooth":
+                log_p = dist.sensing_window(np.sqrt(sq), self.sensor_range, self.window)
+                inside = np.isfinite(log_p)
+                if not inside.any():
+                    continue
+                v, sq, log_p = v[inside], sq[inside], log_p[inside]
+            seen.append((v, sq, log_p, as_vector(f"velocities[{i}]", vel, dim)))
+        if len(seen) > slots:
+            order = np.argsort([s[1].min() for s in seen])[:slots]
+            seen = [seen[i] for i in order]
+        blocks = []
+        for slot in range(slots):
+            pts = np.full((cap, dim), _FAR_AWAY)
+            log_w = np.full(cap, PAD_LOG_WEIGHT)
+            mask = np.zeros(cap)
+            velocity = np.zeros(dim)
+            if slot < len(seen):
+                cloud, sq, log_p, velocity = seen[slot]
+                weights = dist.CloudWeights.from_cloud(cloud, self.sigma, log_p)
+                keep = np.arange(len(cloud))
+                if len(cloud) > cap:
+                    keep = np.sort(np.argsort(sq)[:cap])
+                pts[: len(keep)] = cloud[keep]
+                log_w[: len(keep)] = weights.log_weights[keep]
+                mask[: len(keep)] = 1.0
+                log_v, active = weights.log_volume, 1.0
+            else:
+                log_w[0], mask[0] = 0.0, 1.0
+                log_v, active = 0.0, 0.0
+            tail = [velocity] if self.moving else []
+            if self.metric == "smooth":
+                blocks.append(np.concatenate([pts.ravel(order="F"), log_w, [log_v, active],
+                                              *tail]))
+            else:
+                blocks.append(np.concatenate([pts.ravel(order="F"), mask, [active], *tail]))
+        return np.concatenate(blocks)
+
+    def region_barrier(self):
+        """Symbolic parameters of one region slot and β(y) = D(y) − d_min (eq. 17).
+
+        Returns ``(params, beta, active)``: ``params`` is the slot's parameter column,
+        ``beta(y, tau)`` the CasADi expression for a (p, 1) output y at ``tau`` seconds after
+        the scan, and ``active`` the slot's flag. A moving region is the scanned cloud
+        translated by v·τ, and for a rigid translation D^{A+c}(y) = D^A(y − c): β(y − v·τ).
+        Static (the paper), ``tau`` is ignored.
+        """
+        cap, dim = self.capacity, self.dim
+        pts = ca.SX.sym("points", cap, dim)
+        y = ca.SX.sym("y", dim)
+        active = ca.SX.sym("active")
+        if self.metric == "smooth":
+            log_w = ca.SX.sym("log_w", cap)
+            log_v = ca.SX.sym("log_v")
+            d = dist.smooth_distance_symbolic(y, pts, log_w, log_v, self.eta)
+            extra = [log_w, log_v]
+        else:
+            mask = ca.SX.sym("mask", cap)
+            d = dist.euclidean_distance_symbolic(y, pts, mask)
+            extra = [mask]
+        beta_fn = ca.Function("beta", [y, pts, *extra], [d - self.d_min])
+        if not self.moving:
+            params = ca.vertcat(ca.vec(pts), *extra, active)
+            return params, lambda yy, tau=0.0: beta_fn(yy, pts, *extra), active
+        velocity = ca.SX.sym("velocity", dim)
+        params = ca.vertcat(ca.vec(pts), *extra, active, velocity)
+        return params, lambda yy, tau=0.0: beta_fn(yy - velocity * tau, pts, *extra), active
+
+    def barriers(self):
+        """Every slot at once: ``(params, beta, active)`` with ``params`` the scan's parameter
+        column, ``beta(y, tau)`` the (slots,) expression of β at output y, ``tau`` s after the
+        scan, and ``active`` the (slots,) flags."""
+        slots = [self.region_barrier() for _ in range(self.slots)]
+        params = ca.vertcat(*[s[0] for s in slots])
+        active = ca.vertcat(*[s[2] for s in slots])
+        return (params, (lambda y, tau=0.0: ca.vertcat(*[s[1](y, tau) for s in slots])),
+                active)
+
+
+# --- the one accepted form of inputs -----------------------------------------------------------
+
+def check_visible(visible, dim: int = 3) -> tuple[np.ndarray, ...]:
+    """The one accepted form of a LiDAR scan, checked and never reshaped.
+
+    ``visible`` must be a list or tuple with one finite (k_i, p) array (or nested list) per
+    region, k_i ≥ 0, p = ``dim``. A bare array, even (k, p), is rejected: iterating over it
+    would make every point a region of its own. Returns the regions as float arrays (no copy
+    when they already are), in a tuple that later calls recognise as checked, so the check
+    costs a few microseconds once per solve. Raises ``ValueError`` naming ``visible[i]``.
+    """
+    if type(visible) is _CheckedScan and visible.dim == dim:
+        return visible
+    if not isinstance(visible, (list, tuple)):
+        shape = f" of shape {visible.shape}" if isinstance(visible, np.ndarray) else ""
+        raise ValueError(f"visible must be a list or tuple with one (k_i, {dim}) array per "
+                         f"region, got {type(visible).__name__}{shape}; wrap one region's "
+                         "points in a list: [points]")
+    regions = []
+    for i, v in enumerate(visible):
+        arr = v if type(v) is np.ndarray and v.dtype == np.float64 else _region_array(i, v)
+        if arr.ndim != 2 or arr.shape[1] != dim:
+            raise ValueError(f"visible[{i}] must be a (k, {dim}) array of points (k ≥ 0), got "
+                             f"shape {arr.shape}")
+        if not np.isfinite(arr).all():
+            raise ValueError(f"visible[{i}] must hold finite coordinates only (drop the "
+                             "non-finite returns before solving)")
+        regions.append(arr)
+    return _CheckedScan(regions, dim)
+
+
+class _CheckedScan(tuple):
+    """A scan that :func:`check_visible` has accepted (so it is not checked twice)."""
+
+    def __new__(cls, regions, dim: int):
+        scan = super().__new__(cls, regions)
+        scan.dim = dim
+        return scan
+
+
+def _region_array(i: int, value) -> np.ndarray:
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"visible[{i}] must be a (k, p) array of points, got "
+                         f"{type(value).__name__}") from None
+
+

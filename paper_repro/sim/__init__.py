@@ -1,0 +1,34 @@
+"""The closed loop: LiDAR scan → controller → plant, and what it leaves.
+
+=================  ==================================================================
+``loop``           :func:`simulate`, the step loop, and :class:`Faults` to inject
+``result``         :class:`SimulationResult` (saves itself, becomes a DataFrame)
+``plant``          the quadrotor's plant, RK45 in C (ODE45 in the paper)
+``checks``         checks of a mission before it flies, and the hazards it warns of
+=================  ==================================================================
+"""
+
+from paper_repro.sim.checks import SetupHazardWarning, check_setup, setup_hazards
+from paper_repro.sim.loop import Faults, simulate
+from paper_repro.sim.plant import Plant
+from paper_repro.sim.result import (
+    FAULT_STATUSES,
+    OUTCOMES,
+    RESULT_ARRAYS,
+    SimulationResult,
+    run_metadata,
+)
+
+__all__ = [
+    "check_setup",
+    "FAULT_STATUSES",
+    "Faults",
+    "OUTCOMES",
+    "Plant",
+    "RESULT_ARRAYS",
+    "run_metadata",
+    "setup_hazards",
+    "SetupHazardWarning",
+    "simulate",
+    "SimulationResult",
+]

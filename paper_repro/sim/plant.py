@@ -1,0 +1,131 @@
+"""The simulated quadrotor: one zero-order-hold interval integrated in compiled C.
+
+The paper simulates the plant with MATLAB's ODE45;
+:func:`paper_repro.vehicles.quadrotor.plant_step` does
+it with ``solve_ivp`` (RK45, the same Dormand–Prince 5(4) pair). That costs about 0.2–0.3 ms
+per sampling interval, nearly all of it Python: eight calls of the right-hand side and the
+solver's bookkeeping. :class:`Plant` runs the same method in C: the right-hand side is
+:func:`paper_repro.vehicles.quadrotor.symbolic_dynamics` generated as C by CasADi, and the
+integration loop
+(``_plant_dp45.c``) replicates scipy's RK45 step control — initial step selection, RMS error
+norm, safety factor 0.9, step factors within [0.2, 10], the last step cut to end at t = T_s —
+so both take the same steps and agree to rounding (about 1e-12 over a second of flight).
+
+Without a C compiler (or with ``compile=False``) :class:`Plant` falls back on
+:func:`~paper_repro.vehicles.quadrotor.plant_step`: same results, slower.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import os
+import tempfile
+from importlib import resources
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from paper_repro._native import build_library, compiler
+from paper_repro.config import QuadrotorParams
+from paper_repro.validation import as_vector
+from paper_repro.vehicles.quadrotor import (
+    N_INPUTS,
+    N_STATES,
+    plant_step,
+    symbolic_dynamics,
+)
+
+_EPS = np.finfo(float).eps
+_STATUS = {1: "the step size fell below 10 ulp of t", 2: "the right-hand side failed"}
+
+
+class Plant:
+    """The quadrotor of Table I integrated over one sampling interval under zero-order hold.
+
+    Built once (compiling the C on first use per machine, then loading it from the cache of
+    :mod:`paper_repro._native`); :meth:`step` is the hot path.
+
+    Parameters
+    ----------
+    params : quadrotor parameters, Table I by default.
+    ts : T_s, s, sampling interval (the input is held over it). *paper* 0.01.
+    rtol, atol : relative and absolute tolerances of the RK45 step control, as
+        :func:`~paper_repro.vehicles.quadrotor.plant_step` uses them (ODE45-like accuracy).
+    compile : use the compiled integrator when a C compiler is available; ``False`` (or no
+        compiler) integrates with :func:`~paper_repro.vehicles.quadrotor.plant_step`
+        (``solve_ivp``).
+
+    Attributes
+    ----------
+    native : bool, whether :meth:`step` runs the compiled integrator.
+    stats : (3,) int array of the last compiled step: accepted steps, rejected steps,
+        right-hand-side evaluations (zeros on the fallback path).
+    """
+
+    def __init__(self, params: QuadrotorParams | None = None, ts: float = 0.01,
+                 rtol: float = 1e-8, atol: float = 1e-10, compile: bool = True):
+        if not isinstance(params, (QuadrotorParams, type(None))):
+            raise ValueError(f"params must be a QuadrotorParams or None, got {params!r}")
+        for name, value, low in (("ts", ts, 0.0), ("rtol", rtol, 100 * _EPS)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > low):
+                raise ValueError(f"{name} must be a finite number > {low:g}, got {value!r}")
+        if not (isinstance(atol, (int, float)) and math.isfinite(atol) and atol >= 0):
+            raise ValueError(f"atol must be a finite number >= 0, got {atol!r}")
+        self.params = params or QuadrotorParams()
+        self.ts, self.rtol, self.atol = float(ts), float(rtol), float(atol)
+        self.native = bool(compile) and compiler() is not None
+        self.stats = np.zeros(3, dtype=np.intc)
+        if self.native:
+            self._fn = _library(self.params).plant_dp45
+            # Fixed buffers: a step copies its arguments in and the result out, and the
+            # pointers are made once (ctypes conversions cost more than the integration).
+            self._x, self._u, self._out = (np.zeros(n) for n in (N_STATES, N_INPUTS, N_STATES))
+            self._args = [ctypes.c_void_p(a.ctypes.data) for a in (self._x, self._u)]
+            self._args += [ctypes.c_double(self.ts), ctypes.c_double(self.rtol),
+                           ctypes.c_double(self.atol), ctypes.c_void_p(self._out.ctypes.data),
+                           ctypes.c_void_p(self.stats.ctypes.data)]
+
+    def step(self, x, u) -> np.ndarray:
+        """The state one sampling interval later.
+
+        Parameters
+        ----------
+        x : (12,) array, state now (m, rad, m/s, rad/s; see :mod:`paper_repro.vehicles.quadrotor`).
+        u : (4,) array, rotor thrusts f1..f4 held over the interval, N.
+
+        Returns
+        -------
+        (12,) array, the state at t + T_s (a new array).
+        """
+        x = as_vector("x", x, N_STATES)
+        u = as_vector("u", u, N_INPUTS)
+        if not self.native:
+            return plant_step(x, u, self.ts, self.params, rtol=self.rtol, atol=self.atol)
+        self._x[:] = x
+        self._u[:] = u
+        info = self._fn(*self._args)
+        if info:  # pragma: no cover - RK45 on this smooth ODE does not fail
+            raise RuntimeError(f"plant integration failed: {_STATUS.get(info, info)}")
+        return self._out.copy()
+
+
+def _library(params: QuadrotorParams) -> ctypes.CDLL:
+    """CasADi's C of the right-hand side with the DP45 loop appended, built once (cached)."""
+    f_c = symbolic_dynamics(params)
+    with tempfile.TemporaryDirectory() as tmp:
+        gen = ca.CodeGenerator("plant_rhs.c", {"with_header": False})
+        gen.add(f_c)
+        rhs = Path(gen.generate(str(Path(tmp)) + os.sep)).read_bytes()
+    sizes = (f"#define PLANT_SZ_ARG {f_c.sz_arg()}\n#define PLANT_SZ_RES {f_c.sz_res()}\n"
+             f"#define PLANT_SZ_IW {f_c.sz_iw()}\n#define PLANT_SZ_W {f_c.sz_w()}\n")
+    loop = resources.files("paper_repro.sim").joinpath("_plant_dp45.c").read_bytes()
+    lib = ctypes.CDLL(str(build_library("plant_dp45", rhs + sizes.encode() + loop,
+                                        key_extra=ca.__version__.encode())))
+    lib.plant_dp45.restype = ctypes.c_int
+    lib.plant_dp45.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_double,
+                               ctypes.c_double, ctypes.c_double, ctypes.c_void_p,
+                               ctypes.c_void_p]
+    return lib
+

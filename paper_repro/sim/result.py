@@ -1,0 +1,163 @@
+"""What a closed-loop run leaves: :class:`SimulationResult`, which saves itself beside its
+config and scene and becomes a DataFrame, and the metadata stored with every result."""
+
+from __future__ import annotations
+
+import json
+import platform
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from paper_repro.config import Config
+from paper_repro.world.scene import Scene
+
+RESULT_ARRAYS = ("t", "x", "u", "x_a", "u_a", "solve_time", "iterations", "success", "clearance",
+           "target_index", "visible_points", "dropped_points")
+
+OUTCOMES = ("completed", "stalled", "step_limit", "fault")
+"""How a run ends: ``completed`` (every target reached, or for a passage the finish line
+crossed), ``stalled`` (the NMPC deadlocked, see
+:class:`~paper_repro.config.SimulationParams`), ``step_limit`` (``max_steps`` flown first),
+``fault`` (more than ``fault_steps`` steps in a row without a usable state or solve; the
+reason is in ``meta["fault"]``)."""
+
+FAULT_STATUSES = ("state_fault", "solve_error")
+"""Step statuses of a fault: the measured state was not finite, or the solve raised before it
+could start (its message is in ``meta["errors"]``)."""
+
+
+@dataclass
+class SimulationResult:
+    """A closed-loop run. Arrays have one row per step k = 0..K−1, except ``x`` (K+1 rows).
+
+    Attributes
+    ----------
+    t : (K,) s, time of each step.          x : (K+1, 12) states (last one after the last step).
+    u : (K, 4) N, applied thrusts.          x_a : (K, 12), u_a : (K, 4) artificial equilibrium.
+    solve_time : (K,) s.   iterations : (K,).   success : (K,) bool, solver converged.
+    status : (K,) solver return status.     clearance : (K,) m, true minimum Euclidean distance
+        from the UAV to any cloud point (where it is at t, for moving regions).
+    target_index : (K,) index of the active set-point.
+    visible_points : (K,) number of points the LiDAR saw (after dropping non-finite ones).
+    dropped_points : (K,) non-finite points dropped from the scan.
+    targets : (k, 3) m.   reached : (k,) step at which each target was reached (−1 if not).
+    outcome : one of :data:`OUTCOMES`.
+    scene : the :class:`~paper_repro.world.scene.Scene` flown, clouds and motions included (saved
+        with the result, so a run always redraws against its own points; for moving regions,
+        ``scene.clouds_at(t)`` gives them at time t).
+    config : the :class:`~paper_repro.config.Config` of the run.   meta : versions, machine.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    x_a: np.ndarray
+    u_a: np.ndarray
+    solve_time: np.ndarray
+    iterations: np.ndarray
+    success: np.ndarray
+    status: np.ndarray
+    clearance: np.ndarray
+    target_index: np.ndarray
+    visible_points: np.ndarray
+    dropped_points: np.ndarray
+    targets: np.ndarray
+    reached: np.ndarray
+    outcome: str
+    scene: Scene
+    config: Config
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def steps(self) -> int:
+        return len(self.t)
+
+    @property
+    def failures(self) -> int:
+        return int(np.sum(~self.success))
+
+    @property
+    def completed(self) -> bool:
+        """Every target reached (mission) or the finish line crossed (passage)."""
+        return self.outcome == "completed"
+
+    def summary(self) -> str:
+        """One line: run, outcome, steps, targets reached, clearance, solve times, failures."""
+        st = self.solve_time * 1e3
+        sim = self.config.simulation
+        reached = int(np.sum(self.reached >= 0))
+        return (f"{self.scene.name}/{self.config.distance.metric} ({sim.kind}): {self.outcome} "
+                f"after {self.steps} steps ({self.steps * self.config.nmpc.ts:.2f} s "
+                f"simulated), targets reached {reached}/{len(self.targets)}, min clearance "
+                f"{self.clearance.min():.3f} m, solve median {np.median(st):.2g} ms p95 "
+                f"{np.percentile(st, 95):.2g} ms, failed solves {self.failures}")
+
+    def to_frame(self):
+        """One row per step: t, position, Euler angles, velocities, thrusts, y_a, solver data."""
+        import pandas as pd
+
+        names = ["x", "y", "z", "phi", "theta", "psi", "vx", "vy", "vz", "p_phi", "p_theta",
+                 "p_psi"]
+        data = {"t": self.t}
+        data.update({n: self.x[:-1, i] for i, n in enumerate(names)})
+        data.update({f"f{i + 1}": self.u[:, i] for i in range(4)})
+        data.update({f"{c}_a": self.x_a[:, i] for i, c in enumerate("xyz")})
+        data.update({f"f{i + 1}_a": self.u_a[:, i] for i in range(4)})
+        data.update({"solve_time": self.solve_time, "iterations": self.iterations,
+                     "success": self.success, "status": self.status,
+                     "clearance": self.clearance, "target_index": self.target_index,
+                     "visible_points": self.visible_points,
+                     "dropped_points": self.dropped_points})
+        return pd.DataFrame(data)
+
+    def save(self, directory) -> Path:
+        """Write ``result.npz`` (arrays and the scene's clouds) and ``config.json`` (config,
+        scene description and fingerprint, outcome, versions, commit, machine)."""
+        out = Path(directory)
+        out.mkdir(parents=True, exist_ok=True)
+        arrays = {k: getattr(self, k) for k in RESULT_ARRAYS}
+        clouds = {f"cloud_{i}": c for i, c in enumerate(self.scene.clouds)}
+        np.savez_compressed(out / "result.npz", status=self.status.astype(str),
+                            targets=self.targets, reached=self.reached, **arrays, **clouds)
+        payload = {"config": self.config.to_dict(), "scene": self.scene.to_dict(),
+                   "outcome": self.outcome, "meta": self.meta}
+        (out / "config.json").write_text(json.dumps(payload, indent=2, default=str) + "\n")
+        return out
+
+    @classmethod
+    def load(cls, directory) -> SimulationResult:
+        """Read a result written by :meth:`save`; the scene is rebuilt from its stored clouds
+        (checked against the stored fingerprint), never regenerated."""
+        d = Path(directory)
+        payload = json.loads((d / "config.json").read_text())
+        if "scene" not in payload:
+            raise ValueError(f"{d}: this result was saved before results stored their scene; "
+                             "simulate it again")
+        with np.load(d / "result.npz") as z:
+            arrays = {k: z[k] for k in z.files if not k.startswith("cloud_")}
+            clouds = [z[f"cloud_{i}"] for i in range(len(payload["scene"]["regions"]))]
+        scene = Scene.from_dict(payload["scene"], clouds)
+        return cls(config=Config.from_dict(payload["config"]), meta=payload.get("meta", {}),
+                   outcome=payload["outcome"], scene=scene, **arrays)
+
+
+def run_metadata() -> dict:
+    """Package versions, git commit and machine, stored beside every result."""
+    from importlib.metadata import version
+
+    import casadi
+    import scipy
+
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
+                                cwd=Path(__file__).parent, timeout=5).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        commit = None
+    return {"paper_repro": version("paper_repro"), "python": sys.version.split()[0],
+            "numpy": np.__version__, "scipy": scipy.__version__, "casadi": casadi.__version__,
+            "git_commit": commit, "machine": platform.platform(), "processor": platform.machine(),
+            "cpu_count": __import__("os").cpu_count()}

@@ -1,0 +1,33 @@
+"""Pick the solver of problem (21) that a configuration names.
+
+Both solvers build from the same :class:`~paper_repro.problem.ocp.OCP` and honour the
+:class:`~paper_repro.problem.ocp.Controller` protocol, so the closed loop never needs to know which
+it
+flies with.
+"""
+
+from __future__ import annotations
+
+from paper_repro.config import Config
+from paper_repro.problem.ocp import Controller
+from paper_repro.solvers.ipopt import TrackingNMPC
+from paper_repro.solvers.rti import RealTimeNMPC
+from paper_repro.vehicles.base import VehicleModel
+
+
+def make_controller(config: Config | None = None, model: VehicleModel | None = None,
+                    **options) -> Controller:
+    """The controller named by ``config.nmpc.solver``: ``"rti"`` (:class:`RealTimeNMPC`, with
+    ``nmpc.sqp_iterations``, ``nmpc.line_search`` and ``nmpc.qp_solver``) or ``"reference"``
+    (:class:`TrackingNMPC`).
+
+    ``model`` : the vehicle (the quadrotor by default). ``options`` go to the controller's
+    constructor (e.g. ``max_iter`` for IPOPT, ``capacities`` for the real-time solver).
+    """
+    config = config or Config()
+    if config.nmpc.solver == "reference":
+        return TrackingNMPC(config, model, **options)
+    options.setdefault("max_iter", config.nmpc.sqp_iterations)
+    options.setdefault("qp_solver", config.nmpc.qp_solver)
+    options.setdefault("line_search", config.nmpc.line_search)
+    return RealTimeNMPC(config, model, **options)

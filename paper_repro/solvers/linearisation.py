@@ -1,0 +1,369 @@
+"""The real-time iteration's linearisation of problem (21) at the previous plan, and the layout
+of the stage-wise QP it fills."""
+
+from __future__ import annotations
+
+import itertools
+from typing import NamedTuple
+
+import casadi as ca
+import numpy as np
+
+from paper_repro._native import NativeFunction, compiler
+from paper_repro.problem.ocp import OCP
+from paper_repro.problem.scan import ScanLayout
+
+# --- the linearisation -------------------------------------------------------------------------
+
+def linearisation(ocp: OCP, scan: ScanLayout | None = None,
+                  values_only: bool = False) -> ca.Function:
+    """CasADi function giving every block of the Gauss-Newton QP at the current iterate.
+
+    Inputs: x0 (n_x), X (n_x × N: x_1..x_N), U (n_u × N), A (n_a × N+1: a at each stage),
+    p (y_t, then the scan in ``scan``'s layout, the OCP's by default).
+    Outputs, flattened column-major and concatenated over stages:
+      h: Hessian blocks (stage 0: (a, u); stages 1..N−1: (x, a, s, u); stage N: (x, a, s)),
+      q: gradient, j: [A_j B_j] gap Jacobians then the terminal Jacobian C (the −I blocks of the
+      gaps are constants), gap: residuals φ(z_j, u_j) − z_{j+1}, eq: terminal residual,
+      cost: the objective of (21) at the iterate (the value whose gradient is q).
+    ``values_only``: a function of the same inputs giving only (cost, gap, eq), what the line
+    search needs at a trial point (no derivative is built).
+    """
+    scan = scan or ocp.scan
+    n, nx, nu, ns = ocp.horizon, ocp.nx, ocp.nu, scan.slots
+    f, h = ocp.f, ocp.h
+    na = ocp.na
+
+    # Barrier of every region slot, as a function of y and the packed parameters.
+    yt = ca.SX.sym("y_t", ocp.ny)
+    scan_params, beta_slots, active = scan.barriers()
+    params = ca.vertcat(yt, scan_params)
+    y = ca.SX.sym("y", ocp.ny)
+    # β at τ s after the scan (moving regions); static, τ does not enter (the paper's C).
+    tau = ca.SX.sym("tau")
+    if scan.moving:
+        beta_fn = ca.Function("beta", [y, params, tau], [beta_slots(y, tau)])
+    else:
+        beta_fn = ca.Function("beta", [y, params], [beta_slots(y)])
+
+    def beta(yy, pp, when=0.0):
+        return beta_fn(yy, pp, when) if scan.moving else beta_fn(yy, pp)
+
+    def terms(residual, penalties, v):
+        """The stage's cost ‖r‖² + μ Σ active·F(g) and, unless ``values_only``, its exact
+        gradient and Gauss-Newton Hessian (as vec(H), ∇) with respect to v."""
+        cost = ca.sumsqr(residual)
+        for g, weight in penalties:
+            cost += ocp.mu * weight * ocp.penalty(g)
+        if values_only:
+            return [cost]
+        jr = ca.jacobian(residual, v)
+        hess = 2 * ca.mtimes(jr.T, jr)
+        grad = 2 * ca.mtimes(jr.T, residual)
+        for g, weight in penalties:
+            jg = ca.jacobian(g, v)
+            d1, d2 = ocp.penalty_derivatives(g)
+            hess += ocp.mu * weight * d2 * ca.mtimes(jg.T, jg)
+            grad += ocp.mu * weight * d1 * jg.T
+        return [cost, ca.vec(hess), grad]
+
+    def dynamics(phi, v):
+        """Unless ``values_only`` the Jacobian [A_j B_j] of φ, then φ (the next stage's z)."""
+        return [phi] if values_only else [ca.vec(ca.jacobian(phi, v)), phi]
+
+    # Stage 0: v = (a, u); x0 is known.
+    x0 = ca.SX.sym("x0", nx)
+    a = ca.SX.sym("a", na)
+    u = ca.SX.sym("u", nu)
+    v0 = ca.vertcat(a, u)
+    x_a, u_a = ocp.equilibrium(a)
+    phi0 = ca.vertcat(f(x0, u), a, beta(h(x0), params))
+    stage0 = ca.Function("stage0", [x0, a, u, params],
+                         terms(ocp.tracking_residual(x0, u, x_a, u_a), [], v0)
+                         + dynamics(phi0, v0))
+
+    # Stages 1..N−1: v = (x, a, s, u), s_j = β(y_{j−1}) carried.
+    x = ca.SX.sym("x", nx)
+    s = ca.SX.sym("s", ns)
+    vj = ca.vertcat(x, a, s, u)
+    bj = beta(h(x), params, tau)  # stage j: τ = j·h
+    gj = [(ocp.violation(s[i], bj[i]), active[i]) for i in range(ns)]
+    phij = ca.vertcat(f(x, u), a, bj)
+    inner = ca.Function("inner", [x, a, s, u, params, tau],
+                        terms(ocp.tracking_residual(x, u, x_a, u_a), gj, vj)
+                        + dynamics(phij, vj))
+    x_prev = ca.SX.sym("x_prev", nx)
+    stage = ca.Function("stage", [x_prev, x, a, u, params, tau],
+                        inner(x, a, beta(h(x_prev), params, tau - ocp.step), u, params, tau))
+
+    # Stage N: v = (x, a, s); cost T‖y_a − y_t‖², the last barrier terms; x_N = x_a (and
+    # x_a = f(x_a, u_a) without a parametrisation).
+    vn = ca.vertcat(x, a, s)
+    y_a = h(x_a)
+    bn, ba = beta(h(x), params, tau), beta(y_a, params, tau + ocp.step)
+    gn_terms = []
+    for i in range(ns):
+        gn_terms += [(ocp.violation(s[i], bn[i]), active[i]),
+                     (ocp.violation(bn[i], ba[i]), active[i]),
+                     (ocp.equilibrium_violation(ba[i]), active[i])]
+    eq_res = ca.vertcat(x - x_a, ocp.equilibrium_rows(a))
+    inner_n = ca.Function("inner_n", [x, a, s, params, tau],
+                          terms(ocp.offset_residual(y_a, yt), gn_terms, vn)
+                          + ([] if values_only else [ca.vec(ca.jacobian(eq_res, vn))])
+                          + [eq_res])
+    stage_n = ca.Function("stage_n", [x_prev, x, a, params, tau],
+                          inner_n(x, a, beta(h(x_prev), params, tau - ocp.step), params, tau))
+
+    # Whole horizon.
+    X0 = ca.MX.sym("x0", nx)
+    X = ca.MX.sym("X", nx, n)
+    U = ca.MX.sym("U", nu, n)
+    A = ca.MX.sym("A", na, n + 1)
+    P = ca.MX.sym("p", params.shape[0])
+    out0 = stage0(X0, A[:, 0], U[:, 0], P)
+    mid = stage.map(n - 1, "serial")
+    xprev = ca.horzcat(X0, X[:, : n - 2])
+    times = ca.DM(np.arange(1, n) * ocp.step).T  # τ_j = j·h of stages 1..N−1
+    outm = mid(xprev, X[:, : n - 1], A[:, 1:n], U[:, 1:], P, times)
+    outn = stage_n(X[:, n - 2], X[:, n - 1], A[:, n], P, n * ocp.step)
+    cost = out0[0] + ca.sum2(outm[0]) + outn[0]
+    # Gap residuals φ(z_j, u_j) − z_{j+1}. The iterate's s_{j+1} is always β(y_j) itself (it
+    # is never stored, only recomputed), so the s part of every gap is exactly zero.
+    zero_s = ca.MX.zeros(ns, 1)
+    phis = ca.horzcat(out0[-1], outm[-1])
+    gaps = ca.vertcat(*[ca.vertcat(phis[:nx, j] - X[:, j], phis[nx:nx + na, j] - A[:, j + 1],
+                                   zero_s)
+                        for j in range(n)])
+    name = f"rti_{'values' if values_only else 'linearisation'}_{ocp.model.name}"
+    if values_only:
+        outs, names = [cost, gaps, outn[-1]], ["cost", "gap", "eq"]
+    else:
+        H = ca.vertcat(out0[1], ca.vec(outm[1]), outn[1])
+        Q = ca.vertcat(out0[2], ca.vec(outm[2]), outn[2])
+        J = ca.vertcat(out0[3], ca.vec(outm[3]), outn[3])
+        outs = [H, Q, J, gaps, outn[-1], cost]
+        names = ["h", "q", "j", "gap", "eq", "cost"]
+    return ca.Function(name, [X0, X, U, A, P], [ca.densify(v) for v in outs],
+                       ["x0", "X", "U", "A", "p"], names)
+
+
+class Rung(NamedTuple):
+    """One capacity of the ladder: its scan layout, its linearisation and the values-only
+    function of the line search (see :func:`linearisation`; ``None`` without a line
+    search)."""
+
+    scan: ScanLayout
+    linearisation: ca.Function | NativeFunction
+    values: ca.Function | NativeFunction | None
+
+
+class LinearisationLadder:
+    """The linearisation compiled for several LiDAR capacities (points per region slot).
+
+    A scan uses the smallest capacity that holds it. Padding contributes exactly 0, so every
+    capacity gives the same QP; the small ones skip the padding's arithmetic. With 16 points
+    in view the capacity-16 linearisation takes about a fifth of the time of the capacity-120
+    one, and with at most one point per region (nothing in range, say) the capacity-1 one
+    about half of the capacity-16 one. The cost grows by about 3 µs per point of capacity
+    (2 slots × 35 stages), so the ladder is fine where scans of a paper mission fall (half see
+    nothing, a third hold 17-48 points).
+
+    Parameters
+    ----------
+    ocp : the problem; its ``scan.capacity`` is the largest rung.
+    capacities : the smaller rungs.
+    compile : build C (cached, :class:`~paper_repro._native.NativeFunction`); without it, or
+        without a compiler, one rung evaluated in CasADi's virtual machine.
+    values : also build each rung's values-only function (what the line search evaluates);
+        without a line search it is never called, and not compiling it halves the first
+        build on a new machine.
+
+    Attributes
+    ----------
+    rungs : [:class:`Rung`], by increasing capacity.  native : compiled or not.
+    """
+
+    def __init__(self, ocp: OCP, capacities=(), compile: bool = True, values: bool = True):
+        top = ocp.scan.capacity
+        fn = linearisation(ocp)
+        self.sizes = [fn.nnz_out(i) for i in range(fn.n_out())]
+        self.native = bool(compile and compiler() is not None)
+        if not self.native:
+            self.rungs = [Rung(ocp.scan, fn, linearisation(ocp, values_only=True)
+                               if values else None)]
+        else:
+            self.rungs = []
+            for cap in sorted({c for c in capacities if c < top} | {top}):
+                scan = ocp.scan.with_capacity(cap)
+                self.rungs.append(Rung(
+                    scan, NativeFunction(fn if cap == top else linearisation(ocp, scan)),
+                    NativeFunction(linearisation(ocp, scan, values_only=True))
+                    if values else None))
+        self._empty = {}  # capacity -> packed parameters of a scan that sees nothing
+
+    def for_scan(self, visible) -> Rung:
+        """The rung of the smallest capacity that holds the scan."""
+        need = max((len(v) for v in visible), default=0)
+        for rung in self.rungs:
+            if need <= rung.scan.capacity:
+                return rung
+        return self.rungs[-1]  # the scan keeps the nearest points
+
+    def pack(self, visible, position, scan: ScanLayout, velocities=None) -> np.ndarray:
+        """:meth:`ScanLayout.pack`, except that the packing of an empty scan, the same wherever
+        the vehicle is, is made once per capacity (empty scans are common: nothing in range)."""
+        if any(len(v) for v in visible):
+            return scan.pack(visible, position, velocities)
+        if scan.capacity not in self._empty:
+            self._empty[scan.capacity] = scan.pack((), position)
+        return self._empty[scan.capacity]
+
+    @staticmethod
+    def evaluate(fn, x0, X, U, a, params):
+        """``fn`` (a rung's linearisation or values) at this iterate: [h, q, j, gap, eq, cost]
+        or [cost, gap, eq] (see :func:`linearisation`); ``X`` (N, n_x), ``U`` (N, n_u), ``a``
+        (n_a,) at every stage. Native outputs are the function's own buffers (overwritten by
+        its next call)."""
+        if isinstance(fn, NativeFunction):
+            ins = fn.inputs
+            ins[0][:, 0], ins[1][:], ins[2][:], ins[3][:], ins[4][:, 0] = \
+                x0, X.T, U.T, a[:, None], params
+            fn()
+            return fn.outputs
+        A = np.tile(a[:, None], (1, X.shape[0] + 1))
+        return [np.asarray(v).ravel() for v in fn(x0, X.T, U.T, A, params)]
+
+
+# --- the QP's layout ---------------------------------------------------------------------------
+
+class QPLayout:
+    """Where every variable, block and bound of the stage QP sits. Pure index arithmetic.
+
+    The variable vector w stacks stage by stage: z_0 = a_0, u_0; then z_j = (x_j, a_j, s_j),
+    u_j for j = 1..N−1; then z_N = (x_N, a_N, s_N). The constraints are the gap rows
+    z_{j+1} = [A_j B_j](z_j, u_j) + b_j of every stage and the ``nc`` terminal rows on z_N.
+
+    Parameters
+    ----------
+    horizon : N.  nx, nu : n_x, n_u.  na : size of a.  ns : region slots (carried β).
+    nc : terminal rows.
+    """
+
+    def __init__(self, horizon: int, nx: int, nu: int, na: int, ns: int, nc: int):
+        n = horizon
+        self.horizon, self.nx, self.nu, self.na, self.ns, self.nc = n, nx, nu, na, ns, nc
+        nz = nx + na + ns
+        self.nz = [na] + [nz] * n  # state size per stage (x_0 is known: only a_0)
+        self.sizes = [na + nu] + [nz + nu] * (n - 1) + [nz]
+        self.offsets = offsets = np.concatenate([[0], np.cumsum(self.sizes)])
+        self.nw = nw = int(offsets[-1])
+
+        # Hessian: dense diagonal blocks, stored by the linearisation one after the other,
+        # each in column-major order; runs of equal sizes as (offsets, size).
+        diagonal, k = [], 0
+        for size in self.sizes:
+            diagonal.append(k + np.arange(size) * (size + 1))
+            k += size * size
+        self.hessian_diagonal = np.concatenate(diagonal)  # positions of H's diagonal in h
+        self._uniform_runs = [(offsets[np.array(list(g))], size) for size, g in
+                              itertools.groupby(range(n + 1), key=lambda j: self.sizes[j])]
+        index = -np.ones((nw, nw), dtype=int)
+        k = 0
+        for j, s in enumerate(self.sizes):
+            o = offsets[j]
+            index[o:o + s, o:o + s] = np.arange(k, k + s * s).reshape(s, s, order="F")
+            k += s * s
+        self.hessian_entries = _entries(index)
+
+        # Constraints: gap rows of stage j: [A_j B_j] on stage j, −I on stage j+1; then the
+        # terminal rows C z_N = d on stage N. The sources index (j[:n_ab], −1s, j[n_ab:]).
+        rows = [nz] * n + [nc]
+        row_off = np.concatenate([[0], np.cumsum(rows)])
+        index = -np.ones((int(row_off[-1]), nw), dtype=int)
+        k = 0
+        for j in range(n):
+            r, s = row_off[j], self.sizes[j]
+            index[r:r + nz, offsets[j]:offsets[j] + s] = \
+                np.arange(k, k + nz * s).reshape(nz, s, order="F")
+            k += nz * s
+        self.n_ab = k  # entries of [A_j B_j] in the linearisation's j
+        for j in range(n):
+            r, o = row_off[j], offsets[j + 1]
+            index[r + np.arange(nz), o + np.arange(nz)] = k + np.arange(nz)
+        k += nz * n
+        r, o = row_off[n], offsets[n]
+        index[r:r + nc, o:o + nz] = np.arange(k, k + nc * nz).reshape(nc, nz, order="F")
+        self.constraint_entries = _entries(index)
+        self.n_gap_rows = nz * n
+
+        # Positions of x_1..x_N, u_0..u_{N−1} and a_0..a_N in w.
+        self.ix = np.array([offsets[j] + np.arange(nx) for j in range(1, n + 1)])
+        self.iu = np.array([offsets[j] + self.nz[j] + np.arange(nu) for j in range(n)])
+        self.ia = np.array([offsets[0] + np.arange(na)]
+                           + [offsets[j] + nx + np.arange(na) for j in range(1, n + 1)])
+
+    @classmethod
+    def of(cls, ocp: OCP) -> QPLayout:
+        """The layout of an OCP's stage QP."""
+        a = ca.SX.sym("a", ocp.na)
+        nc = ocp.nx + ocp.equilibrium_rows(a).shape[0]
+        return cls(ocp.horizon, ocp.nx, ocp.nu, ocp.na, ocp.scan.slots, nc)
+
+    def bounds(self, ocp: OCP, state_box=None) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) of w: 𝒳 on x_1..x_N (or ``state_box``, the (lower, upper) that
+        :meth:`OCP.state_box` gives for a measured state outside 𝒳), 𝒰 on u, the equilibrium
+        box on a_0 (the other a_j equal it), nothing on the carried β. Also sets
+        :attr:`bounded`, the indices of the bounded entries (x, u and a_0: the steps that
+        matter)."""
+        lb, ub = np.full(self.nw, -np.inf), np.full(self.nw, np.inf)
+        lb[self.ix], ub[self.ix] = ocp.state_bounds if state_box is None else state_box
+        lb[self.iu], ub[self.iu] = ocp.input_bounds
+        lb[self.ia[0]], ub[self.ia[0]] = ocp.equilibrium_box
+        self.bounded = np.flatnonzero(np.isfinite(lb))
+        return lb, ub
+
+    def curvature(self, h, dw) -> float:
+        """Δwᵀ H Δw from the linearisation's Hessian blocks ``h``."""
+        total, k = 0.0, 0
+        for (o, size) in self._uniform_runs:  # runs of equal block sizes, one einsum each
+            count = len(o)
+            blocks = h[k:k + count * size * size].reshape(count, size, size)
+            parts = dw[o[:, None] + np.arange(size)]
+            total += float(np.einsum("bi,bij,bj->", parts, blocks, parts))
+            k += count * size * size
+        return total
+
+    def scatter(self, X, U, a) -> np.ndarray:
+        """w of the iterate: X (N, n_x) = x_1..x_N, U (N, n_u), a (n_a,) at every stage; the
+        carried β are 0 (they are recomputed, never stored)."""
+        w = np.zeros(self.nw)
+        w[self.ix] = X
+        w[self.iu] = U
+        w[self.ia] = a
+        return w
+
+    def gather(self, dw):
+        """(ΔX (N, n_x), ΔU (N, n_u), Δa (n_a,)) of a step of w."""
+        return dw[self.ix], dw[self.iu], dw[self.ia[0]]
+
+    def dense(self, h, j):
+        """The dense Hessian H (n_w, n_w) and constraint matrix (rows, n_w) of the QP, from the
+        linearisation's ``h`` and ``j``; the constraints are then
+        A w = −(gap, eq)."""
+        (hr, hc, hs), (ar, ac, asrc) = self.hessian_entries, self.constraint_entries
+        H = np.zeros((self.nw, self.nw))
+        H[hr, hc] = np.asarray(h)[hs]
+        src = self._constraint_source(j)
+        A = np.zeros((self.n_gap_rows + self.nc, self.nw))
+        A[ar, ac] = src[asrc]
+        return H, A
+
+    def _constraint_source(self, j):
+        j = np.asarray(j)
+        return np.concatenate([j[:self.n_ab], -np.ones(self.n_gap_rows), j[self.n_ab:]])
+
+
+def _entries(index: np.ndarray):
+    """(rows, cols, sources) of the entries ≥ 0 of ``index``, in column-major order."""
+    cols, rows = np.nonzero(index.T >= 0)
+    return rows, cols, index[rows, cols]

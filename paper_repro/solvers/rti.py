@@ -1,0 +1,392 @@
+"""Real-time NMPC: Gauss-Newton SQP on the stage structure of problem (21).
+
+The same :class:`~paper_repro.problem.ocp.OCP` as the IPOPT reference
+(:mod:`paper_repro.solvers.ipopt`),
+rewritten so that every term lives in one stage and a structure-exploiting QP solver applies:
+
+* **Artificial equilibrium as constant states.** a is carried along the horizon with
+  a_{j+1} = a_j. With an equilibrium parametrisation (the quadrotor: a = (p_a, ψ_a), hover
+  thrust) (x_a, u_a) = (state(a), input(a)) and x_N = x_a is the linear stage-N row
+  x_N − state(a_N) = 0. Without one, a = (x_a, u_a) and the stage-N rows are x_N − x_a = 0 and
+  x_a − f(x_a, u_a) = 0 (:class:`~paper_repro.solvers.riccati_qp.StageQP` takes any terminal rows).
+* **Barrier coupling as a carried state.** g_j = c·β(y_j) − β(y_{j+1}) couples two stages.
+  Carrying s_{j+1} = β(y_j) (one state per region slot) makes g_j = c·s_{j+1} − β(y_{j+1}) a
+  function of stage j+1 alone. The last terms, g_N = c·β(y_N) − β(y_a) and F(y_a), live at
+  stage N.
+* **Gauss-Newton Hessian.** The tracking terms are linear least squares; every penalty is
+  F(g) with F convex and increasing (ε ≥ 1), so F''(g)·∇g∇gᵀ is a positive semidefinite
+  curvature model (the exact penalty Hessian is indefinite and made the real-time iteration
+  chatter in a prototype).
+
+Four parts, one job each:
+
+* :func:`linearisation`: the CasADi function that evaluates every stage's QP blocks at the
+  iterate, built from the ``OCP``'s terms (derivatives by CasADi's AD, the penalty's from
+  :meth:`~paper_repro.problem.ocp.OCP.penalty_derivatives`).
+* :class:`LinearisationLadder`: that function compiled as C for several LiDAR capacities; a
+  scan uses the smallest that holds it.
+* :class:`QPLayout`: where every variable, block and bound sits in the stage QP (pure index
+  arithmetic; :meth:`QPLayout.dense` assembles the dense QP, for tests and for HPIPM).
+* :class:`QPChain`: the QP backends, the Riccati solver
+(:class:`~paper_repro.solvers.riccati_qp.StageQP`,
+  warm-started with the previous active set) first and HPIPM as its fallback, with counters.
+
+:class:`RealTimeNMPC` is the thin SQP loop that joins them: up to ``max_iter`` steps per
+sampling instant, stopping early when the step is small, each step shortened by
+:class:`MeritLineSearch` when it does not decrease the merit function enough.
+"""
+
+from __future__ import annotations
+
+import time
+
+import casadi as ca
+import numpy as np
+
+from paper_repro.config import Config
+from paper_repro.problem.ocp import OCP, NMPCSolution
+from paper_repro.problem.scan import check_visible
+from paper_repro.solvers.linearisation import LinearisationLadder, QPLayout
+from paper_repro.solvers.riccati_qp import StageQP
+from paper_repro.validation import as_vector
+from paper_repro.vehicles.base import VehicleModel
+
+
+class RealTimeNMPC:
+    """Problem (21) solved by Gauss-Newton SQP on its stage structure.
+
+    Parameters
+    ----------
+    config : run configuration (as for :class:`~paper_repro.solvers.ipopt.TrackingNMPC`).
+    model : the vehicle, the quadrotor by default (see :class:`~paper_repro.problem.ocp.OCP`).
+    max_iter : SQP iterations per sampling instant (1 is the classic real-time iteration).
+    step_tol : stop iterating when max |Δw| over x, u and a_0 falls below this.
+    qp_solver : ``"riccati"`` (default): :class:`~paper_repro.solvers.riccati_qp.StageQP`, a Riccati
+        recursion warm-started with the previous active set, with HPIPM as the fallback when
+        it does not find the active set; ``"hpipm"``: HPIPM's interior-point method for
+        every QP. Both return the same QP solution (to their tolerances).
+    compile : build the linearisation as C code (cached). ``False`` uses CasADi's virtual
+        machine (slower, no compiler needed) and HPIPM.
+    capacities : smaller LiDAR capacities (points per region slot) compiled besides the
+        config's ``points_per_region`` (see :class:`LinearisationLadder`; ``()``: the
+        config's capacity only).
+    line_search : ``None`` (default): ``config.nmpc.line_search``. ``True``: the damped RTI,
+        which shortens a step that does not decrease the ℓ1 merit function enough and damps
+        the next QPs after it (:class:`MeritLineSearch`); smoother than the paper's
+        controller with the Euclidean metric. ``False``: every full step (the textbook
+        real-time iteration, whose inputs fall into a period-2 oscillation between their
+        bounds when a region moves at the vehicle).
+
+    Attributes
+    ----------
+    ocp : the problem.  layout : its :class:`QPLayout`.
+    qp_counts : QPs solved so far by each path: ``riccati``, ``hpipm`` (as the chosen solver
+        or as the fallback) and ``failed``.
+    step_counts : SQP steps taken so far: ``full`` (α = 1) and ``shortened`` (α < 1).
+    """
+
+    def __init__(self, config: Config | None = None, model: VehicleModel | None = None,
+                 max_iter: int = 1, step_tol: float = 1e-6, qp_solver: str = "riccati",
+                 compile: bool = True, capacities: tuple[int, ...] = (1, 8, 16, 24, 32, 48),
+                 line_search: bool | None = None):
+        if not (isinstance(max_iter, int) and max_iter >= 1):
+            raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
+        if not step_tol > 0:
+            raise ValueError(f"step_tol must be > 0, got {step_tol!r}")
+        if not all(isinstance(c, int) and c >= 1 for c in capacities):
+            raise ValueError(f"capacities must be integers >= 1, got {capacities!r}")
+        if not (line_search is None or isinstance(line_search, bool)):
+            raise ValueError(f"line_search must be True, False or None (the config's), got "
+                             f"{line_search!r}")
+        if qp_solver not in ("riccati", "hpipm"):
+            raise ValueError(f"qp_solver must be 'riccati' or 'hpipm', got {qp_solver!r}")
+        self.ocp = ocp = OCP(config, model)
+        self.config, self.horizon = ocp.config, ocp.horizon
+        if line_search is None:
+            line_search = self.config.nmpc.line_search
+        self.max_iter, self.step_tol = max_iter, step_tol
+        self.layout = QPLayout.of(ocp)
+        self.ladder = LinearisationLadder(ocp, capacities, compile, values=line_search)
+        self.qp_solver = qp_solver if self.ladder.native else "hpipm"
+        self.qp = QPChain(self.layout, self.qp_solver)
+        self.line_search = MeritLineSearch(self.layout, max_trials=4 if line_search else 0)
+        self._lbw, self._ubw = self.layout.bounds(ocp)
+        self._position = list(ocp.model.position)
+
+    @property
+    def qp_counts(self) -> dict[str, int]:
+        return self.qp.counts
+
+    @property
+    def step_counts(self) -> dict[str, int]:
+        return self.line_search.counts
+
+    # --- public ------------------------------------------------------------------------------
+
+    def solve(self, x0, target, visible=(), previous: NMPCSolution | None = None,
+              velocities=None) -> NMPCSolution:
+        """Same contract as :meth:`paper_repro.solvers.ipopt.TrackingNMPC.solve`, except the warm
+        start:
+        the previous plan moved to the current position (:meth:`NMPCSolution.reanchored`).
+        With one iteration per instant that keeps the closed loop within about a millimetre
+        of the converged solution, where the time-shifted plan drifts by centimetres.
+
+        ``status`` is ``"iterated"`` (``max_iter`` SQP steps taken, the real-time iteration's
+        normal outcome), ``"converged"`` (step below ``step_tol``) or ``"qp_failed"``."""
+        start = time.perf_counter()  # solve_time includes packing the scan: the whole call
+        ocp, layout = self.ocp, self.layout
+        x0 = as_vector("x0", x0, ocp.nx)
+        target = as_vector("target", target, ocp.ny)
+        visible = check_visible(visible, ocp.ny)
+        rung = self.ladder.for_scan(visible)
+        params = np.concatenate([target, self.ladder.pack(visible, ocp.output(x0), rung.scan,
+                                                          velocities)])
+        if previous is None:
+            guess = self.hover_guess(x0)
+        elif self._position:
+            guess = previous.reanchored(x0, self._position)
+        else:
+            guess = previous.shifted()
+        X = np.array(guess.x, dtype=float)  # (N+1, n_x)
+        X[0] = x0
+        lbw, ubw = self._lbw, self._ubw
+        box = ocp.state_box(x0)
+        if box[0] is not ocp.state_bounds[0] or box[1] is not ocp.state_bounds[1]:
+            lbw, ubw = layout.bounds(ocp, box)  # x0 violates 𝒳: the relaxed box (rare)
+        U = np.array(guess.u, dtype=float)
+        a = ocp.parameters_of(guess.x_a, guess.u_a)
+
+        def values(dw, alpha):  # (cost, gap, eq) at the iterate moved by α·Δw
+            dx, du, da = layout.gather(dw)
+            return self.ladder.evaluate(rung.values, x0, X[1:] + alpha * dx, U + alpha * du,
+                                        a + alpha * da, params)
+
+        success, status, it, merit = False, "iterated", 0, np.nan
+        for it in range(1, self.max_iter + 1):  # noqa: B007 - `it` is reported below
+            w = layout.scatter(X[1:], U, a)
+            h, q, j, gap, eq, cost = self.ladder.evaluate(rung.linearisation, x0, X[1:], U, a,
+                                                          params)
+            damped = self.line_search.damp(h)
+            dw = self.qp.solve(h, q, j, gap, eq, lbw - w, ubw - w)
+            if dw is None:
+                success, status = False, "qp_failed"
+                break
+            alpha, merit = self.line_search(dw, h, q, gap, eq, float(cost[0]), values)
+            dx, du, da = layout.gather(dw)
+            X[1:] += alpha * dx
+            U += alpha * du
+            a += alpha * da
+            # Converged: a full, undamped step below the tolerance (a shortened or damped
+            # step is small without being near the solution).
+            if (alpha == 1.0 and not damped
+                    and float(np.abs(dw[layout.bounded]).max()) < self.step_tol):
+                success, status = True, "converged"
+                break
+        else:
+            success, status = True, "iterated"  # real-time iteration: the last iterate is used
+        elapsed = time.perf_counter() - start
+        finite = np.isfinite(X).all() and np.isfinite(U).all() and np.isfinite(a).all()
+        x_a, u_a = ocp.equilibrium_of(a)
+        return NMPCSolution(U, X, x_a, u_a, bool(success and finite), status, it, elapsed,
+                            merit)
+
+    def reset(self) -> None:
+        """Forget everything carried from one solve to the next (the Riccati solver's active
+        set and multipliers, the line search's damping), so that a new flight starts from a
+        clean slate and is bit-identical whether this controller is new or reused.
+        ``qp_counts`` and ``step_counts`` keep counting."""
+        self.qp.reset()
+        self.line_search.reset()
+
+    def hover_guess(self, x0) -> NMPCSolution:
+        """Rest where the vehicle is for the whole horizon (the quadrotor: hover)."""
+        return self.ocp.rest(x0)
+
+    def obstacle_parameters(self, visible, position, velocities=None) -> np.ndarray:
+        """The LiDAR scan in the parameter layout of the config's capacity."""
+        return self.ocp.scan.pack(visible, position, velocities)
+
+
+# --- the QP backends ---------------------------------------------------------------------------
+
+class QPChain:
+    """The QP backends in order: the warm-started Riccati solver, then HPIPM.
+
+    Parameters
+    ----------
+    layout : the QP's :class:`QPLayout`.
+    qp_solver : ``"riccati"`` (Riccati first, HPIPM when it fails) or ``"hpipm"`` (HPIPM only).
+
+    Attributes
+    ----------
+    counts : QPs solved by ``riccati``, by ``hpipm`` (chosen or as fallback), and ``failed``.
+    """
+
+    def __init__(self, layout: QPLayout, qp_solver: str = "riccati"):
+        self.layout = lay = layout
+        n = lay.horizon
+        self.riccati = (StageQP(lay.nz, [lay.nu] * n, lay.nc)
+                        if qp_solver == "riccati" else None)
+        (hr, hc, hs), (ar, ac, asrc) = lay.hessian_entries, lay.constraint_entries
+        h_sp = ca.Sparsity.triplet(lay.nw, lay.nw, hr.tolist(), hc.tolist())
+        a_sp = ca.Sparsity.triplet(lay.n_gap_rows + lay.nc, lay.nw, ar.tolist(), ac.tolist())
+        self.hpipm = ca.conic("rti_qp", "hpipm", {"h": h_sp, "a": a_sp},
+                              {"N": n, "nx": lay.nz, "nu": [lay.nu] * n + [0],
+                               "ng": [0] * n + [lay.nc],
+                               # 'robust' converges where 'speed' stalls on this problem;
+                               # bounds of ±1e4 on the free variables keep HPIPM's
+                               # tolerances relative.
+                               "hpipm": {"iter_max": 100, "mode": "robust"}, "inf": 1e4,
+                               "error_on_fail": False, "print_problem": False})
+        # Blocks of the linearisation -> HPIPM's sparse H and A (a fixed permutation).
+        h_src = ca.MX.sym("h", int(np.sum(np.square(lay.sizes))))
+        j_src = ca.MX.sym("j", lay.n_ab + lay.nc * lay.nz[-1])
+        a_src = ca.vertcat(j_src[:lay.n_ab], ca.DM(-np.ones(lay.n_gap_rows)), j_src[lay.n_ab:])
+        self._matrices = ca.Function("rti_qp_matrices", [h_src, j_src],
+                                     [ca.MX(h_sp, h_src[hs.tolist()]),
+                                      ca.MX(a_sp, a_src[asrc.tolist()])])
+        self.counts = {"riccati": 0, "hpipm": 0, "failed": 0}
+
+    def solve(self, h, q, j, gap, eq, lb, ub) -> np.ndarray | None:
+        """The step Δw of the QP min ½ΔwᵀHΔw + qᵀΔw s.t. the linearised gaps and terminal rows,
+        lb ≤ Δw ≤ ub; ``None`` when no backend solves it."""
+        n_ab = self.layout.n_ab
+        dw = None
+        if self.riccati is not None:
+            res = self.riccati.solve(h, q, j[:n_ab], gap, j[n_ab:], -eq, lb, ub)
+            if res.success:
+                dw = res.z
+                self.counts["riccati"] += 1
+        if dw is None:
+            dw = self._solve_hpipm(h, q, j, gap, eq, lb, ub)
+        if dw is None or not np.isfinite(dw).all():
+            self.counts["failed"] += 1
+            return None
+        return dw
+
+    def reset(self) -> None:
+        """Forget the Riccati solver's active set and multipliers (``counts`` keep counting)."""
+        if self.riccati is not None:
+            self.riccati.reset()
+
+    def _solve_hpipm(self, h, q, j, gap, eq, lb, ub):
+        """The QP by HPIPM; its active set then seeds the Riccati solver's next call."""
+        hmat, amat = self._matrices(h, j)
+        rhs = -np.concatenate([gap, eq])
+        sol = self.hpipm(h=hmat, g=q, a=amat, lba=rhs, uba=rhs, lbx=lb, ubx=ub)
+        if not self.hpipm.stats().get("success", False):
+            return None
+        self.counts["hpipm"] += 1
+        dw = np.asarray(sol["x"]).ravel()
+        if self.riccati is not None:
+            self.riccati.seed(dw, lb, ub, np.asarray(sol["lam_x"]).ravel())
+        return dw
+
+
+# --- the step size -----------------------------------------------------------------------------
+
+
+class MeritLineSearch:
+    """Backtracking on the ℓ1 merit function of problem (21) (Nocedal & Wright, 2006, §18.3),
+    with Levenberg–Marquardt damping of the next QPs when a step had to be shortened.
+
+        φ(w) = J(w) + ν·(‖gap(w)‖₁ + ‖eq(w)‖₁),
+
+    J the objective of (21) and gap, eq its equality residuals. The QP step p is a descent
+    direction of φ once ν ≥ (qᵀp + ½pᵀHp) / ((1 − ρ)‖c‖₁) (ρ = ½, c the residuals), so ν is
+    raised to that bound at every step, and then α = 1, ½, ¼, … is taken as soon as
+
+        φ(w + αp) ≤ φ(w) + η·α·Dφ,    Dφ = qᵀp − ν‖c‖₁  (η = 10⁻⁴, Armijo),
+
+    up to 10⁻¹⁰·(1 + |φ|): near the solution every smaller change of φ is rounding.
+
+    Why: the Gauss-Newton QP is a local model. Where a region moves at the vehicle the stiff
+    penalty makes the full step overshoot, the next instant's step undo it, and the inputs
+    alternate between their bounds at every sample (a period-2 oscillation of the textbook
+    real-time iteration). Shortening the step stops the overshoot; the QP's own plan still
+    swings, so after a shortened step the next QPs get the damping δ·I on their Hessian
+    (δ grows ×``grow`` after every shortened step, from ``damping_start`` up to
+    ``damping_max``, shrinks ÷``relax`` after every full one and is 0 again below
+    ``damping_start``/100). δ changes the step, never the fixed point: the converged SQP
+    solves (21) whatever δ is.
+
+    Near the optimum every full step is accepted: the cost is one evaluation of (J, gap, eq)
+    per iteration, without derivatives, and δ stays 0, so the iterates are those of the full
+    steps bit for bit. When ``max_trials`` step sizes all fail the best one tried is taken (a
+    real-time iteration must return); with ``max_trials = 0`` every full step is taken and δ
+    stays 0.
+
+    Attributes
+    ----------
+    counts : steps taken at full length (``full``) and shortened (``shortened``).
+    damping : δ for the next QP.
+    """
+
+    def __init__(self, layout: QPLayout, max_trials: int = 4, armijo: float = 1e-4,
+                 shrink: float = 0.5, damping_start: float = 10.0, damping_max: float = 1e5,
+                 grow: float = 4.0, relax: float = 2.0):
+        if not (isinstance(max_trials, int) and max_trials >= 0):
+            raise ValueError(f"max_trials must be an integer >= 0, got {max_trials!r}")
+        if not (0 < armijo < 0.5 and 0 < shrink < 1):
+            raise ValueError(f"armijo must be in (0, 0.5) and shrink in (0, 1), got "
+                             f"{armijo!r}, {shrink!r}")
+        if not (0 < damping_start <= damping_max and grow > 1 and relax > 1):
+            raise ValueError(f"need 0 < damping_start <= damping_max, grow > 1 and relax > 1, "
+                             f"got {damping_start!r}, {damping_max!r}, {grow!r}, {relax!r}")
+        self.layout, self.max_trials = layout, max_trials
+        self.armijo, self.shrink = armijo, shrink
+        self.feasible = 1e-12  # per residual
+        self.damping_start, self.damping_max = damping_start, damping_max
+        self.grow, self.relax = grow, relax
+        self.counts = {"full": 0, "shortened": 0}
+        self.damping = 0.0
+
+    def reset(self) -> None:
+        """No damping (a new flight)."""
+        self.damping = 0.0
+
+    def damp(self, h) -> bool:
+        """Add δ to every diagonal entry of the Hessian blocks ``h`` (in place); whether δ > 0."""
+        if self.damping > 0.0:
+            h[self.layout.hessian_diagonal] += self.damping
+            return True
+        return False
+
+    def __call__(self, dw, h, q, gap, eq, cost: float, values) -> tuple[float, float]:
+        """(α, φ(w + αΔw)) for the QP step ``dw`` at the iterate whose linearisation is (h, q,
+        gap, eq, cost); ``values(dw, α)`` returns (cost, gap, eq) at w + αΔw. Then adapts δ."""
+        if self.max_trials == 0:
+            self.counts["full"] += 1
+            return 1.0, np.nan
+        infeasibility = float(np.abs(gap).sum() + np.abs(eq).sum())
+        slope = float(q @ dw)
+        nu = 0.0
+        # Residuals at rounding level count as feasible (ν from them would be noise).
+        if infeasibility > self.feasible * (gap.size + eq.size):
+            curvature = max(self.layout.curvature(h, dw), 0.0)
+            nu = max(0.0, (slope + 0.5 * curvature) / (0.5 * infeasibility)) + 1.0
+        merit0 = cost + nu * infeasibility
+        descent = slope - nu * infeasibility
+        # Near the solution the changes of φ are rounding (of φ and of the residuals that
+        # the step restores): a change within 10⁻¹⁰·(1 + |φ|) counts as no increase.
+        rounding = 1e-10 * (1.0 + abs(merit0))
+        alpha, best = 1.0, (np.inf, 1.0)
+        for _ in range(self.max_trials):
+            c, g, e = values(dw, alpha)
+            merit = float(c[0]) + nu * float(np.abs(g).sum() + np.abs(e).sum())
+            if merit <= merit0 + self.armijo * alpha * min(descent, 0.0) + rounding:
+                break
+            best = min(best, (merit, alpha))
+            alpha *= self.shrink
+        else:
+            merit, alpha = best
+        if alpha == 1.0:
+            self.counts["full"] += 1
+            self.damping /= self.relax
+            if self.damping < self.damping_start / 100:
+                self.damping = 0.0
+        else:
+            self.counts["shortened"] += 1
+            self.damping = min(max(self.damping * self.grow, self.damping_start),
+                               self.damping_max)
+        return alpha, merit

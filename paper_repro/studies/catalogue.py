@@ -1,0 +1,336 @@
+"""The catalogue of studies: each is plain data, a list of run specs over random passages
+(Monte Carlo, the eta sweep, sensor noise, the sensing window, moving obstacles, the clock)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from paper_repro.config import PREDICTIONS, Config, SensorParams
+from paper_repro.studies.runs import RunSpec
+from paper_repro.validation import require_int
+
+PASSAGE_STEPS = 15_000
+"""Step limit of a passage (150 s of flight): about three times the 40-60 s a passage takes, so
+only a stall or a very long detour reaches it."""
+
+QUICK_STEPS = 400
+"""Step limit of a ``--quick`` study's runs (4 s of flight): exercises every part, proves
+nothing."""
+
+
+@dataclass(frozen=True)
+class Study:
+    """A named list of runs.
+
+    Attributes
+    ----------
+    name : folder name of the study's output (``monte_carlo``).
+    specs : the runs; names must be unique.
+    description : one paragraph, stored in ``study.json``.
+    """
+
+    name: str
+    specs: tuple
+    description: str = ""
+
+    def __post_init__(self):
+        if not self.name or "/" in self.name:
+            raise ValueError(f"name must be a non-empty folder name, got {self.name!r}")
+        if not self.specs or not all(isinstance(s, RunSpec) for s in self.specs):
+            raise ValueError("specs must be a non-empty sequence of RunSpec")
+        names = [s.name for s in self.specs]
+        if len(set(names)) != len(names):
+            dup = sorted({n for n in names if names.count(n) > 1})
+            raise ValueError(f"specs must have unique names, repeated: {dup[:5]}")
+        object.__setattr__(self, "specs", tuple(self.specs))
+
+
+# --- the studies ----------------------------------------------------------------------------
+
+def passage_config(base: Config | None = None, seed: int = 0, max_steps: int = PASSAGE_STEPS,
+                   scenario: str = "random", **distance) -> Config:
+    """``base`` flying a passage through the random scene of ``seed`` (``scenario``:
+    ``"random"``, or ``"random-crossing"`` whose regions move across the line); ``distance``
+    overrides fields of :class:`~paper_repro.config.DistanceParams` (``metric``, ``eta``,
+    ``sigma``)."""
+    base = base or Config()
+    return dataclasses.replace(
+        base, distance=dataclasses.replace(base.distance, **distance),
+        simulation=dataclasses.replace(base.simulation, scenario=scenario, kind="passage",
+                                       seed=int(seed), max_steps=int(max_steps)))
+
+
+def passage_spec(seed: int, metric: str = "smooth", eta: float | None = None,
+                 sigma: float | None = None, max_steps: int = PASSAGE_STEPS,
+                 base: Config | None = None, tag: str = "", scenario: str = "random"
+                 ) -> RunSpec:
+    """A passage through random scene ``seed``; the name says what differs from ``base`` (and
+    ``tag`` anything else a study varies), so the same flight has the same name (and cache
+    folder) in every study that asks for it."""
+    base = base or Config()
+    over = {"metric": metric}
+    if metric == "smooth":
+        over.update(eta=base.distance.eta if eta is None else eta,
+                    sigma=base.distance.sigma if sigma is None else sigma)
+    cfg = passage_config(base, seed, max_steps, scenario, **over)
+    name = (f"passage-smooth-eta{cfg.distance.eta:g}-sigma{cfg.distance.sigma:g}"
+            if metric == "smooth" else f"passage-{metric}") + (f"-{tag}" if tag else "") + \
+        f"-s{seed:03d}"
+    labels = (("metric", metric),
+              ("eta", cfg.distance.eta if metric == "smooth" else 0.0),
+              ("sigma", cfg.distance.sigma if metric == "smooth" else float("nan")),
+              ("scene_seed", seed))
+    return RunSpec(name, cfg, max_steps, labels)
+
+
+def monte_carlo(quick: bool = False, scenes: int | None = None,
+                base: Config | None = None) -> Study:
+    """The paper's claim over random scenes: ``scenes`` passages (100; 3 with ``quick``) ×
+    {smoothed, Euclidean}, everything else as printed."""
+    n = scenes if scenes is not None else (3 if quick else 100)
+    require_int("scenes", n, 1)
+    steps = QUICK_STEPS if quick else PASSAGE_STEPS
+    specs = [passage_spec(seed, metric, max_steps=steps, base=base)
+             for metric in ("smooth", "euclidean") for seed in range(n)]
+    return Study("monte_carlo" + ("-quick" if quick else ""), tuple(specs),
+                 f"{n} random passages x {{smooth, euclidean}}, printed parameters")
+
+
+ETAS = (0.05, 0.1, 0.2, 0.3, 0.5, 0.8)
+"""η values of :func:`eta_sweep`, m (the paper's 0.3 in the middle)."""
+
+SIGMAS = (0.4, 0.8, 1.6)
+"""σ values of :func:`eta_sweep`, m (the paper's 0.8 in the middle)."""
+
+
+def eta_sweep(quick: bool = False, scenes: int | None = None, etas: Sequence[float] = ETAS,
+              sigmas: Sequence[float] = SIGMAS, grid: bool = False,
+              base: Config | None = None) -> Study:
+    """η and σ over ``scenes`` random passages (20; 2 with ``quick``), plus the Euclidean
+    baseline (the η → 0 limit) on the same scenes.
+
+    By default one factor at a time about the printed point (η = 0.3 m, σ = 0.8 m): every η
+    of ``etas`` at the printed σ, every σ of ``sigmas`` at the printed η (9 configurations with
+    the baseline). ``grid=True`` flies the full η × σ grid (19).
+    """
+    n = scenes if scenes is not None else (2 if quick else 20)
+    require_int("scenes", n, 1)
+    base = base or Config()
+    if quick:
+        etas, sigmas = (0.1, 0.3), (0.8,)
+    for name, values in (("etas", etas), ("sigmas", sigmas)):
+        if not values or not all(math.isfinite(v) and v > 0 for v in values):
+            raise ValueError(f"{name} must be a non-empty sequence of finite values > 0 (m), "
+                             f"got {values!r}")
+    eta0, sigma0 = base.distance.eta, base.distance.sigma
+    pairs = ([(e, s) for s in sigmas for e in etas] if grid else
+             [(e, sigma0) for e in etas] + [(eta0, s) for s in sigmas if s != sigma0])
+    pairs = list(dict.fromkeys(pairs))  # unique, in order
+    steps = QUICK_STEPS if quick else PASSAGE_STEPS
+    specs = [passage_spec(seed, "smooth", eta, sigma, steps, base)
+             for eta, sigma in pairs for seed in range(n)]
+    specs += [passage_spec(seed, "euclidean", max_steps=steps, base=base) for seed in range(n)]
+    return Study("eta_sweep" + ("-quick" if quick else ""), tuple(specs),
+                 f"(eta, sigma) in {pairs} and the Euclidean baseline over {n} random "
+                 "passages")
+
+
+NOISY_LIDAR = SensorParams(range_noise=0.05, dropout=0.2, spurious_rate=2.0)
+"""The sensor of :func:`sensor_noise`: 5 cm range noise (1σ), one point in five lost, two
+spurious returns per scan on average; seeded per scene."""
+
+
+def sensor_noise(quick: bool = False, scenes: int | None = None,
+                 base: Config | None = None) -> Study:
+    """Smooth against Euclidean with a perfect and a noisy LiDAR (:data:`NOISY_LIDAR`), on
+    ``scenes`` random passages (8; 2 with ``quick``; the perfect runs are those of
+    :func:`monte_carlo`). The smoothed distance averages many points where the Euclidean one
+    follows the nearest, so noise should widen the gap."""
+    n, base, steps = _passages(quick, scenes, 8, base)
+    specs = []
+    for level, sensor in (("perfect", base.sensor), ("noisy", NOISY_LIDAR)):
+        for metric in ("smooth", "euclidean"):
+            for seed in range(n):
+                cfg = dataclasses.replace(base, sensor=dataclasses.replace(sensor, seed=seed)
+                                          if level == "noisy" else sensor)
+                spec = passage_spec(seed, metric, max_steps=steps, base=cfg,
+                                    tag="" if level == "perfect" else "noisy")
+                specs.append(dataclasses.replace(spec, labels=spec.labels
+                                                 + (("sensor", level),)))
+    return Study("sensor_noise" + ("-quick" if quick else ""), tuple(specs),
+                 f"smooth vs euclidean, perfect vs noisy LiDAR ({NOISY_LIDAR}), {n} passages")
+
+
+SENSING_WINDOWS = (0.0, 0.5, 1.0)
+"""Widths w (m) of the smooth sensing window flown by :func:`sensing_window` (0: the paper's
+hard cut-off at r_s = 3 m)."""
+
+
+def sensing_window(quick: bool = False, scenes: int | None = None,
+                   base: Config | None = None) -> Study:
+    """The smooth metric with the sensing window of each width in :data:`SENSING_WINDOWS`, on
+    ``scenes`` random passages (12; 2 with ``quick``; w = 0 are the runs of
+    :func:`monte_carlo`). Do thrust steps at changes of the visible set disappear, and at what
+    cost in clearance and completion?"""
+    n, base, steps = _passages(quick, scenes, 12, base)
+    specs = []
+    for width in SENSING_WINDOWS:
+        cfg = dataclasses.replace(base, distance=dataclasses.replace(base.distance,
+                                                                     window=width))
+        for seed in range(n):
+            spec = passage_spec(seed, "smooth", max_steps=steps, base=cfg,
+                                tag="" if width == 0 else f"w{width:g}")
+            specs.append(dataclasses.replace(spec, labels=spec.labels + (("window_m", width),)))
+    return Study("sensing_window" + ("-quick" if quick else ""), tuple(specs),
+                 f"smooth metric, sensing window w in {SENSING_WINDOWS} m, {n} passages")
+
+
+"""How the NMPC predicts a moving region (``SimulationParams.prediction``): not at all (the
+paper), with its true velocity, or with a Kalman filter on its visible centroid."""
+
+
+def moving_obstacles(quick: bool = False, scenes: int | None = None,
+                     base: Config | None = None) -> Study:
+    """Random crossings (``"random-crossing"``: every region moves across the line at
+    0.5–1.5 m/s) × the predictions of :data:`PREDICTIONS` × {smoothed, Euclidean}, on
+    ``scenes`` passages (30; 2 with ``quick``). Does the static assumption collide where
+    prediction does not?
+
+    Flown with the damped real-time iteration (``nmpc.line_search = True``): where a region
+    moves at the vehicle the full Gauss-Newton steps fall into a period-2 oscillation of the
+    thrusts between their bounds that the converged controller (IPOPT) does not show, and the
+    damped iteration stays within millimetres of IPOPT there (``benchmarks/fidelity.py``)."""
+    n, base, steps = _passages(quick, scenes, 30, base)
+    base = dataclasses.replace(base, nmpc=dataclasses.replace(base.nmpc, line_search=True))
+    specs = []
+    for prediction in PREDICTIONS:
+        cfg = dataclasses.replace(base, simulation=dataclasses.replace(
+            base.simulation, prediction=prediction))
+        for metric in ("smooth", "euclidean"):
+            for seed in range(n):
+                spec = passage_spec(seed, metric, max_steps=steps, base=cfg,
+                                    tag=f"crossing-{prediction}", scenario="random-crossing")
+                specs.append(dataclasses.replace(
+                    spec, labels=spec.labels + (("prediction", prediction),)))
+    return Study("moving_obstacles" + ("-quick" if quick else ""), tuple(specs),
+                 f"random crossings, prediction in {PREDICTIONS} x both metrics, {n} passages")
+
+
+def timeline_flights(quick: bool = False, scenes: int | None = None,
+                     base: Config | None = None) -> Study:
+    """The paper mission under each reading of the printed set-up that could set its clock
+    (:func:`timeline_study`); ``scenes`` does not apply."""
+    if scenes is not None:
+        raise ValueError("scenes does not apply to the timeline study (it flies the paper "
+                         "mission)")
+    return timeline_study(quick=quick, base=base)
+
+
+STUDIES: dict[str, Callable[..., Study]] = {"monte_carlo": monte_carlo, "eta_sweep": eta_sweep,
+                                            "sensor_noise": sensor_noise,
+                                            "sensing_window": sensing_window,
+                                            "moving_obstacles": moving_obstacles,
+                                            "timeline": timeline_flights}
+"""The studies ``python -m paper_repro study NAME`` knows."""
+
+
+# --- the timeline study: the paper mission per reading of the clock ------------------------
+
+CANDIDATES: dict[str, dict] = {
+    "printed": {},
+    "N = 42": {"horizon": 42},
+    "N = 43": {"horizon": 43},
+    "T × 2.66": {"t": (2660.0, 2660.0, 2660.0)},
+    "h = 0.0118 s": {"prediction_ts": 0.0118},
+}
+"""Readings of the printed set-up flown by :func:`timeline_study`: label → overrides of
+:class:`~paper_repro.config.NMPCParams`. Each is the single change that the linear loop
+(:func:`predicted_mission_time`) puts closest to 500 s in its own parameter."""
+
+TIMELINE_QUICK_STEPS = 300
+"""Step limit of a quick timeline study (3 s of flight: what CI flies; it proves nothing about
+the clock, only that every part runs)."""
+
+
+def candidate_config(label: str, base: Config | None = None) -> Config:
+    """``base`` (default :class:`Config`) with the overrides of ``CANDIDATES[label]``."""
+    if label not in CANDIDATES:
+        raise ValueError(f"label must be one of {sorted(CANDIDATES)}, got {label!r}")
+    base = base or Config()
+    return dataclasses.replace(base, nmpc=dataclasses.replace(base.nmpc, **CANDIDATES[label]))
+
+
+def timeline_study(quick: bool = False, max_steps: int | None = None,
+                   labels=None, base: Config | None = None):
+    """The paper mission (``paper`` scene, obstacles, smoothed distance) under each candidate.
+
+    Parameters
+    ----------
+    quick : fly :data:`TIMELINE_QUICK_STEPS` steps per run (the start of the mission only).
+    max_steps : explicit step limit (default: the config's, 200,000 = 2,000 s, i.e. the whole
+        mission under every candidate).
+    labels : which of :data:`CANDIDATES` (default: all).
+    base : configuration the candidates change (default :class:`Config`, the printed one).
+
+    Returns
+    -------
+    :class:`~paper_repro.studies.catalogue.Study` named ``timeline`` (``timeline-quick``). The
+    printed
+    candidate's run is named ``paper-smooth``, as in ``reproduce``, so the two share its cache
+    folder when they share a cache root.
+    """
+
+    from paper_repro.studies.runs import RunSpec
+
+    base = base or Config()
+    steps = max_steps if max_steps is not None else (
+        TIMELINE_QUICK_STEPS if quick else base.simulation.max_steps)
+    specs = []
+    for label in labels if labels is not None else CANDIDATES:
+        cfg = candidate_config(label, base)
+        cfg = dataclasses.replace(cfg, simulation=dataclasses.replace(
+            cfg.simulation, scenario="paper", kind="mission", max_steps=steps))
+        p = cfg.nmpc
+        slug = "".join(c for c in label.replace(".", "p") if c.isalnum())
+        name = "paper-smooth" if label == "printed" else f"timeline-{slug}"
+        specs.append(RunSpec(name, cfg, steps, (
+            ("candidate", label), ("horizon", p.horizon), ("t_weight", p.t[0]),
+            ("prediction_ts", p.prediction_step))))
+    return Study("timeline" + ("-quick" if quick else ""), tuple(specs),
+                 "the paper mission under readings of the printed set-up (issue 12)")
+
+
+def make_study(name: str, quick: bool = False, base: Config | None = None,
+               scenes: int | None = None) -> Study:
+    """The study of :data:`STUDIES` called ``name``, its runs built on ``base`` (default
+    :class:`Config`, e.g. a :func:`paper_repro.presets.preset`), over ``scenes`` random
+    passages (default: the study's own)."""
+    if name not in STUDIES:
+        raise ValueError(f"study must be one of {sorted(STUDIES)}, got {name!r}")
+    return STUDIES[name](quick=quick, base=base, scenes=scenes)
+
+
+STUDY_NOTEBOOKS = {"monte_carlo": "09_monte_carlo", "eta_sweep": "10_eta_sweep",
+                   "sensor_noise": "13_sensor_noise", "sensing_window": "15_smooth_sensing",
+                   "moving_obstacles": "16_moving_obstacles", "timeline": "11_timeline"}
+"""The notebook that draws each study's figures from its saved table."""
+
+STUDY_NOTEBOOK_QUICK = {"sensing_window": {"mission": "encounter", "mission_steps": 3000},
+                        "moving_obstacles": {"crossing_steps": 1500}, "timeline": {"quick": True}}
+"""Notebook parameters of a ``--quick`` study beyond its table (notebook 15 also flies one
+mission with and without the window: the encounter's first 30 s instead of the paper's;
+notebook 16 flies the crossing scene with each prediction: its first 15 s, past the meeting,
+instead of the whole passage; notebook 11 sweeps fewer values per lever)."""
+
+
+def _passages(quick: bool, scenes: int | None, default: int, base: Config | None):
+    """(number of scenes, base config, steps per passage) of a passage study: ``default``
+    scenes, 2 with ``quick`` (and the short quick passages), unless ``scenes`` says."""
+    n = scenes if scenes is not None else (2 if quick else default)
+    require_int("scenes", n, 1)
+    return n, base or Config(), QUICK_STEPS if quick else PASSAGE_STEPS
+
+

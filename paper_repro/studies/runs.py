@@ -1,0 +1,149 @@
+"""The run cache: one closed-loop run described as data, flown once, stored atomically.
+
+A :class:`RunSpec` is a small picklable value (a name, a full :class:`~paper_repro.config.Config`,
+a step limit and labels for tables). Its :attr:`RunSpec.key` is the SHA-256 of the
+configuration, the step limit and the fingerprint of the scene the configuration builds, so:
+
+* the same spec always lands in the same folder ``<results>/<name>-<key[:12]>/``, and a second
+  request only loads it (``reproduce`` redraws, an interrupted study redoes only what is
+  missing);
+* a changed parameter, or a scene generator that now builds other clouds, gives a new folder;
+* a change of code that moves a flight changes the golden hash
+  (:func:`paper_repro.evidence.golden.golden_hash`, part of the key) once the golden flights are
+  written again, and every cached run is retired with it: nothing flown by older code is
+  redrawn as if it were this code's. ``force=True`` flies again regardless.
+
+:func:`ensure_result` writes a result into a private ``.partial`` folder and renames it into
+place, so a crash, a killed worker or two workers racing on one spec never leave a folder that
+looks complete. Both ``reproduce`` and ``study`` go through here.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import os
+import shutil
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from paper_repro import paths
+from paper_repro.config import Config
+
+HASH_LENGTH = 12
+"""Hex digits of the run key kept in a cache folder's name."""
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One closed-loop run: ``config`` flown for at most ``max_steps`` steps.
+
+    Attributes
+    ----------
+    name : readable prefix of the cache folder (``paper-smooth``, ``mc-euclidean-s17``).
+    config : the full configuration; its ``simulation`` part names the scene (scenario, seed)
+        and the run kind.
+    max_steps : step limit (one step is T_s).
+    labels : ``(column, value)`` pairs shown in study tables (e.g. ``("eta", 0.3)``); they do
+        not enter the key.
+    """
+
+    name: str
+    config: Config
+    max_steps: int
+    labels: tuple = field(default=(), compare=False)
+
+    def __post_init__(self):
+        if not (isinstance(self.max_steps, int) and self.max_steps >= 1):
+            raise ValueError(f"max_steps must be an integer >= 1, got {self.max_steps!r}")
+        if not self.name or "/" in self.name:
+            raise ValueError(f"name must be a non-empty folder name without '/', got "
+                             f"{self.name!r}")
+
+    def scene(self):
+        """The scene this spec flies, built from ``config.simulation`` (scenario, seed)."""
+        from paper_repro.world.scenarios import make_scene
+
+        sim = self.config.simulation
+        return make_scene(sim.scenario, sim.seed)
+
+    @functools.cached_property
+    def key(self) -> str:
+        """SHA-256 (hex) of the configuration, ``max_steps`` and the scene's fingerprint
+        (computed once per spec: building a random scene takes milliseconds to a second)."""
+        return run_key(self.config, self.max_steps, self.scene().fingerprint())
+
+    def directory(self, results_dir=None) -> Path:
+        """Cache folder ``<results_dir>/<name>-<key[:12]>`` (``results/`` by default)."""
+        base = Path(results_dir) if results_dir is not None else paths.results_dir()
+        return base / f"{self.name}-{self.key[:HASH_LENGTH]}"
+
+
+def run_key(config: Config, max_steps: int, scene_fingerprint: str) -> str:
+    """SHA-256 (hex) of a run: ``config.to_dict()``, ``max_steps``, the scene fingerprint and
+    the golden hash (the code's behaviour)."""
+    from paper_repro.evidence.golden import golden_hash
+
+    payload = {"config": config.to_dict(), "max_steps": int(max_steps),
+               "scene": scene_fingerprint, "golden": golden_hash()}
+    text = json.dumps(payload, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def is_cached(directory) -> bool:
+    """A complete saved result lives in ``directory``."""
+    d = Path(directory)
+    return (d / "result.npz").is_file() and (d / "config.json").is_file()
+
+
+def ensure_result(spec: RunSpec, results_dir=None, force: bool = False,
+                  progress: bool | None = None, controller=None) -> tuple[Path, bool]:
+    """The cache folder of ``spec``, flying the run first if it is missing (or ``force``).
+
+    Parameters
+    ----------
+    spec : the run.
+    results_dir : the cache's root (default ``results/``).
+    force : fly again even when a complete result exists.
+    progress : closed-loop progress bar (default: when writing to a terminal).
+    controller : a built controller for ``spec.config`` to reuse (it is reset before flying).
+
+    Returns (folder, simulated).
+    """
+    out = spec.directory(results_dir)
+    if is_cached(out) and not force:
+        return out, False
+    store(fly(spec, controller=controller, progress=progress), out)
+    return out, True
+
+
+def fly(spec: RunSpec, controller=None, progress: bool | None = None):
+    """Fly one run: the single call of :func:`~paper_repro.sim.loop.simulate` behind every
+    cached result (``reproduce`` and ``study`` alike)."""
+    from paper_repro.sim.loop import simulate
+
+    return simulate(spec.config, controller=controller, max_steps=spec.max_steps,
+                    progress=progress)
+
+
+def store(result, out) -> Path:
+    """Save ``result`` into ``out`` atomically: written under a private name, then renamed.
+
+    When another process completed the same folder meanwhile, its copy is kept (both flew
+    the same spec) and ours is discarded.
+    """
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    partial = out.with_name(f".{out.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}.partial")
+    result.save(partial)
+    if out.exists():
+        shutil.rmtree(out, ignore_errors=True)
+    try:
+        os.rename(partial, out)
+    except OSError:  # another writer's complete copy is there now
+        shutil.rmtree(partial, ignore_errors=True)
+        if not is_cached(out):
+            raise
+    return out

@@ -1,0 +1,87 @@
+"""The world the vehicle flies in: obstacle regions as point clouds, how they move, and what
+the LiDAR sees of them.
+
+=================  ==================================================================
+``shapes``         boxes, cylinders, unions, differences; Halton clouds inside them
+``motion``         :class:`Motion`, a region's piecewise-constant velocity
+``scene``          :class:`Region`, :class:`Scene` (saved with every result)
+``scenarios``      the named scenes, :func:`make_scene`
+``random_scenes``  seeded random obstacle fields across a straight flight
+``planar``         a planar scene for a ground robot, and a 2-D LiDAR
+``lidar``          :class:`Lidar`, the virtual LiDAR (optionally imperfect)
+``tracking``       :class:`RegionTracker`, a Kalman filter of the regions' velocities
+=================  ==================================================================
+"""
+
+from paper_repro.world.lidar import Lidar
+from paper_repro.world.motion import Motion
+from paper_repro.world.planar import PlanarRun, PlanarScene, fly, planar_scan, planar_scene
+from paper_repro.world.random_scenes import (
+    NONCONVEX_KINDS,
+    REGION_KINDS,
+    RandomSceneParams,
+    crossing_motions,
+    passage_progress,
+    random_scene,
+)
+from paper_repro.world.scenarios import (
+    CROSSING_SPEED,
+    MEETING_TIME,
+    ONCOMING_SPEED,
+    SCENARIOS,
+    crossing_scene,
+    encounter_scene,
+    make_scene,
+    oncoming_scene,
+    paper_scene,
+)
+from paper_repro.world.scene import WORKSPACE_LOWER, WORKSPACE_UPPER, Region, Scene
+from paper_repro.world.shapes import (
+    Box,
+    Cylinder,
+    Difference,
+    Union,
+    halton_cloud,
+    shape_from_dict,
+    shape_to_dict,
+)
+from paper_repro.world.tracking import RegionTracker, centroid_of, chi2_quantile
+
+__all__ = [
+    "Box",
+    "centroid_of",
+    "chi2_quantile",
+    "crossing_motions",
+    "crossing_scene",
+    "CROSSING_SPEED",
+    "Cylinder",
+    "Difference",
+    "encounter_scene",
+    "fly",
+    "halton_cloud",
+    "Lidar",
+    "make_scene",
+    "MEETING_TIME",
+    "Motion",
+    "NONCONVEX_KINDS",
+    "oncoming_scene",
+    "ONCOMING_SPEED",
+    "paper_scene",
+    "passage_progress",
+    "planar_scan",
+    "planar_scene",
+    "PlanarRun",
+    "PlanarScene",
+    "random_scene",
+    "RandomSceneParams",
+    "Region",
+    "REGION_KINDS",
+    "RegionTracker",
+    "SCENARIOS",
+    "Scene",
+    "shape_from_dict",
+    "shape_to_dict",
+    "Union",
+    "WORKSPACE_LOWER",
+    "WORKSPACE_UPPER",
+]
