@@ -1,5 +1,5 @@
 import sys
 
-from paper_repro.cli.main import main
+from paper_repro.cli.parser import main
 
 sys.exit(main())

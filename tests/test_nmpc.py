@@ -223,7 +223,7 @@ def test_bad_solve_arguments_are_rejected(smooth_controller):
 
 @pytest.mark.parametrize("solver", ["rti", "reference"])
 def test_cli_run_saves_a_loadable_result(tmp_path, capsys, solver):
-    from paper_repro.cli.main import main
+    from paper_repro.cli.parser import main
     from paper_repro.sim.result import SimulationResult
 
     out = tmp_path / "run"

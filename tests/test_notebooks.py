@@ -220,12 +220,13 @@ def quick_tuning(tmp_path_factory):
     """A quick tuning study (σ and d_min on two 60-step passages: at most one new C build),
     its held-out flights on two scenes, all in the test's folders."""
     from paper_repro.studies import tuning
+    from paper_repro.studies.tuning_results import run_heldout
 
     base = tmp_path_factory.getbasetemp() / "tuning"
     res = tuning.tune(3, quick=True, workers=0, base=TINY, seeds=(0, 1), max_steps=60,
                       space={"sigma": None, "d_min": (1.0, 1.5, 0.5)}, out=base / "out",
                       runs_dir=base / "runs", log=lambda line: None)
-    tuning.run_heldout(res, 2, runs_dir=base / "runs", log=lambda line: None)
+    run_heldout(res, 2, runs_dir=base / "runs", log=lambda line: None)
     return res
 
 

@@ -1,8 +1,6 @@
 """The one description of problem (21): its terms, its scan layout, its QP layout, any model."""
 
-import ast
 import dataclasses
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -280,51 +278,4 @@ def test_a_bad_model_is_refused_naming_the_field(changes, message):
 
 # --- the import graph -------------------------------------------------------------------------
 
-def _import_graph(top_level_only: bool) -> dict[str, set[str]]:
-    """Module -> the package's modules it imports (at the top, or anywhere)."""
-    root = Path(__file__).parents[1] / "paper_repro"
-    modules = {p.stem for p in root.glob("*.py")}
-    edges = {}
-    for path in root.glob("*.py"):
-        tree = ast.parse(path.read_text())
-        nodes = tree.body if top_level_only else ast.walk(tree)
-        deps = set()
-        for node in nodes:
-            if isinstance(node, ast.ImportFrom) and node.level == 1:
-                deps |= ({node.module.split(".")[0]} if node.module
-                         else {a.name for a in node.names})
-        edges[path.stem] = (deps & modules) - {path.stem}
-    return edges
 
-
-def _find_cycle(edges, start_nodes):
-    state = {}
-
-    def visit(m, trail):
-        state[m] = "open"
-        for d in sorted(edges.get(m, ())):
-            if state.get(d) == "open":
-                return trail + [d]
-            if d not in state and (cycle := visit(d, trail + [d])):
-                return cycle
-        state[m] = "done"
-        return None
-
-    for m in start_nodes:
-        if m not in state and (cycle := visit(m, [m])):
-            return cycle
-    return None
-
-
-def test_the_import_graph_is_a_dag():
-    """The description sits below the solvers, the solvers below make_controller: every
-    import reachable from ``controllers``, at the top of a module or inside a function, points
-    one way; and no module-level import anywhere in the package closes a cycle."""
-    everywhere = _import_graph(top_level_only=False)
-    assert {"ocp", "nmpc", "rti"} <= everywhere["controllers"]
-    assert "ocp" in everywhere["nmpc"] and "ocp" in everywhere["rti"]
-    assert not {"nmpc", "rti", "controllers"} & everywhere["ocp"]
-    assert "rti" not in everywhere["nmpc"] and "nmpc" not in everywhere["rti"]
-    assert _find_cycle(everywhere, ["controllers"]) is None
-    top = _import_graph(top_level_only=True)
-    assert _find_cycle(top, sorted(top)) is None

@@ -533,8 +533,11 @@ def approach():
     return {p: _fly_approach(p) for p in ("static", "oracle", "kalman")}
 
 
-def test_prediction_velocities_replay_what_the_controller_was_given(approach):
+def test_prediction_velocities_are_what_the_controller_was_given(approach, tmp_path):
+    """The closed loop logs the velocities it hands the controller; a figure reads them from
+    the saved result and never flies again."""
     from paper_repro.config import SensorParams
+    from paper_repro.sim.result import SimulationResult
 
     result, given = approach["static"]
     assert all(v is None for v in given)
@@ -549,6 +552,8 @@ def test_prediction_velocities_replay_what_the_controller_was_given(approach):
     for result, given in (approach["kalman"], noisy):
         v = prediction_velocities(result)
         assert np.array_equal(v, np.array(given))  # bit for bit, noise included
+        saved = SimulationResult.load(result.save(tmp_path / "run"))
+        assert np.array_equal(prediction_velocities(saved), v)
     result = approach["kalman"][0]
     v = prediction_velocities(result)
     seen = np.flatnonzero(result.visible_points > 0)

@@ -13,7 +13,7 @@ import pytest
 
 from paper_repro import Config, DistanceParams, NMPCParams, paths
 from paper_repro.cli import reproduce as reproduce_command
-from paper_repro.cli.main import main
+from paper_repro.cli.parser import main
 from paper_repro.progress import PrefixedLines, heartbeat
 from paper_repro.sim.result import SimulationResult
 from paper_repro.studies import reproduce as R

@@ -226,18 +226,15 @@ def test_the_noise_study_shares_its_perfect_runs_and_perturbs_the_others():
     assert not np.array_equal(a.visible_points, clean.visible_points)
 
 
-def test_a_worker_builds_each_controller_once(monkeypatch):
-    """Two passages of one configuration share one controller in a worker process."""
-    from paper_repro.solvers import factory as controllers
-
-    built = []
-    real = controllers.make_controller
-    monkeypatch.setattr(controllers, "make_controller",
-                        lambda cfg, *a, **k: built.append(cfg) or real(cfg, *a, **k))
-    S._controller.cache_clear()
-    specs = S.monte_carlo(scenes=2).specs
-    keys = [S.controller_key(s.config) for s in specs if dict(s.labels)["metric"] == "smooth"]
-    assert len(keys) == 2 and keys[0] == keys[1]
-    first, second = (S._controller(k) for k in keys)
-    assert first is second and len(built) == 1
-    S._controller.cache_clear()
+def test_a_worker_builds_each_controller_once(tmp_path):
+    """Six passages of two configurations on two workers: each worker process builds at most
+    one controller per configuration, however many runs it flies (one worker: exactly two,
+    for six runs)."""
+    for workers in (1, 2):
+        res = S.run_study(_study(), out=tmp_path / str(workers), workers=workers,
+                          progress=False, log=lambda line: None)
+        assert (res.table["status"] == "ok").all() and len(res.table) == 6
+        builds = res.table.groupby("worker")["controller_builds"].max()
+        assert len(builds) == workers and (builds <= 2).all(), builds
+        if workers == 1:
+            assert builds.iloc[0] == 2

@@ -237,7 +237,7 @@ def test_solvers_refuse_a_bare_array(make, encounter):
 def test_cli_out_existing_file_fails_before_flying(tmp_path, capsys):
     """``--out`` naming an existing file is refused at once (it used to fly the mission and
     then die with a FileExistsError traceback)."""
-    from paper_repro.cli.main import main
+    from paper_repro.cli.parser import main
 
     existing = tmp_path / "result"
     existing.write_text("")
@@ -254,7 +254,7 @@ def test_cli_out_existing_file_fails_before_flying(tmp_path, capsys):
 ])
 def test_cli_option_errors_are_one_line(argv, name, capsys):
     """argparse's errors print one line ``error: ...`` and return 2 (no usage dump)."""
-    from paper_repro.cli.main import main
+    from paper_repro.cli.parser import main
 
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()

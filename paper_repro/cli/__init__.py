@@ -2,7 +2,7 @@
 ``HELP``, ``add_arguments(parser)`` and ``main(args)``.
 
 =================  ==================================================================
-``main``           the parser and the dispatch to the commands
+``parser``         :func:`main`: the parser and the dispatch to the commands
 ``args``           argument types with a stated accepted range, checked output folders
 ``run``            fly one mission and save its result
 ``scene``          print a scene and D_{η,σ} against ½d²
@@ -14,4 +14,6 @@
 =================  ==================================================================
 """
 
-__all__ = []
+from paper_repro.cli.parser import main
+
+__all__ = ["main"]

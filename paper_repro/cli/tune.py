@@ -15,7 +15,7 @@ from paper_repro.studies.tuning import (
     QUICK,
     check_tune_args,
     tune,
-    tuning_cluster,
+    tuning_client,
 )
 from paper_repro.studies.tuning_results import run_heldout
 from paper_repro.studies.tuning_space import DEFAULT_OBJECTIVES, OBJECTIVES, finished_trials
@@ -81,7 +81,7 @@ def main(args) -> int:
         if getattr(args, name) is not None and getattr(args, name) < 0:
             raise ValueError(f"--{name} must be an integer >= 0, got {getattr(args, name)}")
     t0 = time.perf_counter()
-    with tuning_cluster(args.workers, args.scheduler, None, log) as client:
+    with tuning_client(args.workers, args.scheduler, None, log) as client:
         res = tune(trials, quick=quick, client=client, storage=args.storage,
                    objectives=args.objectives, scenes=args.scenes, sampler=args.sampler,
                    seed=args.seed, out=out, log=log)

@@ -125,17 +125,17 @@ def fly_golden(flight: GoldenFlight, flown: dict | None = None) -> np.ndarray:
 
     ``flown`` : arrays of flights already flown this call (for ``start``); the committed
     copy of the parent is used when it is missing."""
+    from paper_repro.sim.loop import simulate
     from paper_repro.solvers.factory import make_controller
 
     cfg = flight.config()
     if flight.vehicle == "unicycle":
         from paper_repro.vehicles.unicycle import unicycle_model
-        from paper_repro.world.planar import fly, planar_scene
+        from paper_repro.world.planar import planar_scene
 
-        run = fly(make_controller(cfg, unicycle_model()), planar_scene(), steps=flight.steps)
-        return np.hstack([run.x[:-1], run.u])
-    from paper_repro.sim.loop import simulate
-
+        result = simulate(cfg, make_controller(cfg, unicycle_model()), max_steps=flight.steps,
+                          progress=False, scene=planar_scene())
+        return np.hstack([result.x[:-1], result.u])
     initial = None
     if flight.start is not None:
         parent, step = flight.start
@@ -213,6 +213,7 @@ EVIDENCE_SETS = (
     "presets/paper-timeline",  # reproduce --preset paper-timeline
     "studies/timeline",  # study timeline
     "fidelity",  # benchmarks/fidelity.py
+    "ground_robot",  # benchmarks/ground_robot.py
     "studies/monte_carlo", "studies/eta_sweep", "studies/sensor_noise",
     "studies/sensing_window", "studies/moving_obstacles", "studies/moving_obstacles_definition",
     "tuning",  # tune

@@ -49,6 +49,22 @@ def fidelity() -> str:
                       "min clearance, m", "from IPOPT's path", "IPOPT at its limit"], rows)
 
 
+def ground_robot() -> str:
+    """``figures/ground_robot/ground_robot.csv`` (flights) with its timings beside it."""
+    folder = paths.figures_dir() / "ground_robot"
+    table = pd.read_csv(folder / "ground_robot.csv").merge(
+        pd.read_csv(folder / "ground_robot_timings.csv"), on=["metric", "solver"])
+    names = {"reference": "IPOPT", "rti": "RTI (1 SQP step)", "sqp-2": "SQP, 2 steps"}
+    rows = [["smooth" if r.metric == "smooth" else "Euclidean", names[r.solver],
+             f"{_ms(r.median_ms)} / {_ms(r.p99_ms)}", r.failures,
+             "—" if r.solver == "reference" else _metres(r.max_dev_m),
+             f"{r.min_clearance_m:.3f} m", "yes" if r.passed else "no: stops in front",
+             r.outcome, f"{r.steps:,}", f"{r.tv_per_s:.3f}"] for r in table.itertuples()]
+    return markdown_table(["metric", "solver", "median / p99 ms", "failed solves",
+                           "max deviation from IPOPT", "min clearance", "past the wall",
+                           "outcome", "steps", "TV of (v, ω) per s"], rows)
+
+
 def monte_carlo() -> str:
     """Rates and paired effects of ``figures/studies/monte_carlo/mc_summary.csv``."""
     table = pd.read_csv(paths.figures_dir() / "studies" / "monte_carlo" / "mc_summary.csv")
@@ -203,13 +219,14 @@ def regeneration() -> str:
     return markdown_table(["evidence set", "made by", "wall time (2 cores, last run)"], rows)
 
 
-MACHINE_BLOCKS = frozenset({"regeneration"})
+MACHINE_BLOCKS = frozenset({"regeneration", "ground_robot"})
 """Blocks quoting what the machine measured: rendered like the others, never asserted (they
 change with every regeneration)."""
 
 BLOCKS: dict[str, Callable[[], str]] = {
     "regeneration": regeneration,
-    "summary": summary, "fidelity": fidelity, "monte_carlo": monte_carlo,
+    "summary": summary, "fidelity": fidelity, "ground_robot": ground_robot,
+    "monte_carlo": monte_carlo,
     "eta_sweep": eta_sweep, "sensor_noise": sensor_noise, "sensing_window": sensing_window,
     "moving_obstacles": moving_obstacles, "timeline": timeline, "tuning": tuning}
 """Every generated block of the README, by name."""
@@ -276,6 +293,11 @@ def _metres(x: float) -> str:
     if x < 0.01:
         return f"{1e3 * x:.2g} mm"
     return f"{100 * x:.2g} cm" if x < 1 else f"{x:.2g} m"
+
+
+def _ms(x: float) -> str:
+    """A time in ms: two significant digits, whole milliseconds from 10 ms."""
+    return f"{x:,.0f}" if x >= 10 else f"{x:.2g}"
 
 
 def _num(x: float) -> str:

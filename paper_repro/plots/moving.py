@@ -31,16 +31,12 @@ GHOST_COLOR = "tab:blue"
 
 
 def prediction_velocities(result) -> np.ndarray:
-    """The velocity of each region that the controller was given at each step of ``result``.
+    """The velocity of each region that the controller was given at each step of ``result``,
+    as the closed loop logged it (``SimulationResult.region_velocities``):
 
     * ``"static"`` (the paper): zeros, the regions are taken to stay where they are seen;
     * ``"oracle"``: the regions' true velocities at t_k (:meth:`Lidar.velocities`);
-    * ``"kalman"``: the estimates of a :class:`~paper_repro.world.tracking.RegionTracker` replayed
-      along the saved trajectory. The LiDAR is deterministic (a perfect one; a noisy one
-      draws its noise from its seed, scan after scan), so scanning again from each saved
-      state x_k at t_k and updating a new tracker gives the velocities the controller used,
-      bit for bit, for a run flown by :func:`~paper_repro.sim.loop.simulate` without
-      injected faults.
+    * ``"kalman"``: the estimates of the run's :class:`~paper_repro.world.tracking.RegionTracker`.
 
     Parameters
     ----------
@@ -50,27 +46,12 @@ def prediction_velocities(result) -> np.ndarray:
     -------
     (K, n_regions, 3) array, m/s, K = ``result.steps``.
     """
-    from paper_repro.world.tracking import RegionTracker
-
-    cfg, scene = result.config, result.scene
-    t = np.asarray(result.t, float)
-    n = len(scene.clouds)
-    prediction = cfg.simulation.prediction
-    out = np.zeros((len(t), n, 3))
-    if prediction == "static":
-        return out
-    lidar = Lidar(scene.clouds, cfg.simulation.lidar_range, noise=cfg.sensor,
-                  motions=scene.motions)
-    if prediction == "oracle":
-        for k, tk in enumerate(t):
-            out[k] = lidar.velocities(float(tk))
-        return out
-    tracker = RegionTracker(cfg.nmpc.ts)
-    for k, tk in enumerate(t):
-        scan = lidar.scan(result.x[k, :3], float(tk))
-        scan = [v[np.all(np.isfinite(v), axis=1)] for v in scan]  # as the closed loop does
-        out[k] = tracker.update(scan, float(tk))
-    return out
+    if result.config.simulation.prediction == "static":
+        return np.zeros((result.steps, len(result.scene.clouds), result.scene.dim))
+    if result.region_velocities is None:
+        raise ValueError(f"{result.scene.name}: this result was saved before the closed loop "
+                         "logged the regions' velocities; fly it again")
+    return result.region_velocities
 
 
 def plot_clearance_time(results, labels, ax=None, t_range=None,

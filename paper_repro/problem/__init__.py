@@ -21,7 +21,7 @@ from paper_repro.problem.distance import (
     smooth_distance_symbolic,
     smooth_projection,
 )
-from paper_repro.problem.ocp import OCP, Controller, NMPCSolution
+from paper_repro.problem.ocp import OCP, Controller, NMPCSolution, selected_states
 from paper_repro.problem.scan import PAD_LOG_WEIGHT, ScanLayout, check_visible
 
 __all__ = [
@@ -36,6 +36,7 @@ __all__ = [
     "OCP",
     "PAD_LOG_WEIGHT",
     "ScanLayout",
+    "selected_states",
     "sensing_window",
     "smooth_distance",
     "smooth_distance_gradient",

@@ -75,7 +75,7 @@ class OCP:
         self.horizon = p.horizon
         self.f = rk4(model.dynamics, p.prediction_step)
         self.h = model.output
-        self._selected = _selected_states(model.output)
+        self._selected = selected_states(model.output)
         self.equilibria = model.equilibria
         self._equilibrium_fn = None  # numeric a -> (x_a, u_a), built on first use
         self._position_entries = list(model.position)  # never relaxed (see state_box)
@@ -254,7 +254,7 @@ class OCP:
                             True, "guess", 0, 0.0, np.nan)
 
 
-def _selected_states(h: ca.Function) -> np.ndarray | None:
+def selected_states(h: ca.Function) -> np.ndarray | None:
     """The indices i_k with h(x)_k = x_{i_k}, when h only selects states; else ``None``."""
     jac = _constant_jacobian(h)
     if jac is not None and np.all(jac.sum(axis=1) == 1) and not _at_zero(h).any():

@@ -10,7 +10,7 @@
 
 from paper_repro.sim.checks import SetupHazardWarning, check_setup, setup_hazards
 from paper_repro.sim.loop import Faults, simulate
-from paper_repro.sim.plant import Plant
+from paper_repro.sim.plant import ModelPlant, Plant, plant_for
 from paper_repro.sim.result import (
     FAULT_STATUSES,
     OUTCOMES,
@@ -23,8 +23,10 @@ __all__ = [
     "check_setup",
     "FAULT_STATUSES",
     "Faults",
+    "ModelPlant",
     "OUTCOMES",
     "Plant",
+    "plant_for",
     "RESULT_ARRAYS",
     "run_metadata",
     "setup_hazards",

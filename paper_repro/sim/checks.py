@@ -27,8 +27,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from paper_repro.config import Config
+from paper_repro.config import Config, relaxed_box
 from paper_repro.problem import distance as dist
+from paper_repro.vehicles.base import VehicleModel
 from paper_repro.world.lidar import Lidar
 from paper_repro.world.scene import Scene
 
@@ -39,7 +40,7 @@ class SetupHazardWarning(UserWarning):
     """A mission flown from or to an unsafe set-up (see :func:`setup_hazards`)."""
 
 
-def check_setup(config: Config, scene: Scene) -> None:
+def check_setup(config: Config, scene: Scene, model: VehicleModel | None = None) -> None:
     """Raise ``ValueError`` (one line naming the offending field and its accepted range) when
     the mission is inconsistent: the start outside the admissible state set, or a target
     outside the workspace, or a passage without a finish line.
@@ -49,23 +50,27 @@ def check_setup(config: Config, scene: Scene) -> None:
     config : the run's :class:`~paper_repro.config.Config`; the admissible positions are
         ``[nmpc.state_lower[:3], nmpc.state_upper[:3]]``, m (closed box).
     scene : the :class:`~paper_repro.world.scene.Scene` to fly.
+    model : the vehicle flown (default: the quadrotor): the admissible positions are its box
+        𝒳 at its ``position`` states.
     """
     if not isinstance(config, Config):
         raise ValueError(f"config must be a Config, got {type(config).__name__}")
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a Scene, got {type(scene).__name__}")
-    lower = np.asarray(config.nmpc.state_lower[:3], float)
-    upper = np.asarray(config.nmpc.state_upper[:3], float)
+    lower, upper, label = _position_box(config, model)
+    if len(lower) != scene.dim:
+        raise ValueError(f"scene {scene.name!r} is {scene.dim}-D and the vehicle has "
+                         f"{len(lower)} position states")
     _require_inside("scene.start", np.asarray(scene.start, float), lower, upper,
-                    "the admissible state set")
+                    "the admissible state set", label)
     for k, target in enumerate(_targets(scene)):
-        _require_inside(f"scene.targets[{k}]", target, lower, upper, "the workspace")
+        _require_inside(f"scene.targets[{k}]", target, lower, upper, "the workspace", label)
     if getattr(config.simulation, "kind", "mission") == "passage" and scene.finish is None:
         raise ValueError(f"simulation.kind 'passage' needs a scene with a finish line, and "
                          f"scene {scene.name!r} has none (use kind 'mission')")
 
 
-def setup_hazards(config: Config, scene: Scene) -> dict:
+def setup_hazards(config: Config, scene: Scene, model: VehicleModel | None = None) -> dict:
     """Unsafe set-ups that are allowed but must be reported (see the module docstring).
 
     A point y is *unsafe* when, for some region, the barrier distance D(y) (the smoothed
@@ -87,10 +92,10 @@ def setup_hazards(config: Config, scene: Scene) -> dict:
         ``simulation.tolerance`` from λ(𝒳), where the artificial equilibrium must rest.
         ``warnings`` : list of one-line messages, one per hazard (empty when none).
     """
-    check_setup(config, scene)
+    check_setup(config, scene, model)
     points = scene.all_points
     tree = cKDTree(points) if len(points) else None
-    lidar = Lidar(list(scene.clouds), config.simulation.lidar_range)
+    lidar = Lidar(list(scene.clouds), config.simulation.lidar_range, dim=scene.dim)
     arm, d_min = config.quadrotor.arm, config.barrier.d_min
 
     def assess(y):
@@ -106,11 +111,12 @@ def setup_hazards(config: Config, scene: Scene) -> dict:
     if start_unsafe:
         warnings.append(f"start {start.tolist()} is unsafe: " + _why(start_clear, start_d,
                                                                       config))
-    xl, xu, _, _ = config.nmpc.relaxed_bounds()
+    lower, upper, _ = _position_box(config, model)
+    xl, xu = relaxed_box(lower, upper, config.nmpc.lam)
     targets_unsafe, target_clear, target_d, unreachable = [], [], [], []
     for k, target in enumerate(_targets(scene)):
         unsafe, clear, d = assess(target)
-        gap = float(np.linalg.norm(target - np.clip(target, xl[:3], xu[:3])))
+        gap = float(np.linalg.norm(target - np.clip(target, xl, xu)))
         far = gap > config.simulation.tolerance
         targets_unsafe.append(unsafe)
         target_clear.append(clear)
@@ -131,12 +137,23 @@ def setup_hazards(config: Config, scene: Scene) -> dict:
 
 
 def _require_inside(name: str, point: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                    what: str) -> None:
-    for i in range(3):
+                    what: str, label: str) -> None:
+    for i in range(len(point)):
         if not lower[i] <= point[i] <= upper[i]:
             raise ValueError(
                 f"{name}[{i}] ({_AXES[i]}) must lie in [{lower[i]:g}, {upper[i]:g}] m "
-                f"(nmpc.state_lower[{i}], nmpc.state_upper[{i}]: {what}), got {point[i]:g}")
+                f"({label}_lower[{i}], {label}_upper[{i}]: {what}), got {point[i]:g}")
+
+
+def _position_box(config: Config, model: VehicleModel | None):
+    """(lower, upper, name) of the admissible positions: the quadrotor's ``nmpc`` box at
+    (x, y, z), or a model's box 𝒳 at its ``position`` states."""
+    if model is None or model.name == "quadrotor":
+        return (np.asarray(config.nmpc.state_lower[:3], float),
+                np.asarray(config.nmpc.state_upper[:3], float), "nmpc.state")
+    index = list(model.position)
+    return (np.asarray(model.state_lower, float)[index],
+            np.asarray(model.state_upper, float)[index], f"{model.name}.state")
 
 
 def _targets(scene: Scene) -> np.ndarray:

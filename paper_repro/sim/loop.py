@@ -1,4 +1,4 @@
-"""Closed-loop mission: LiDAR scan → NMPC → plant (RK45, zero-order hold), and its result.
+"""The closed loop for any vehicle: LiDAR scan → controller → plant (zero-order hold).
 
 The step loop of :func:`simulate` is short on purpose; read it to see exactly what happens at
 each sampling instant. :class:`SimulationResult` saves itself as ``result.npz`` with the full
@@ -17,13 +17,14 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from paper_repro.config import Config
-from paper_repro.problem.ocp import Controller, NMPCSolution
+from paper_repro.problem.ocp import Controller, NMPCSolution, selected_states
 from paper_repro.progress import step_progress
 from paper_repro.sim.checks import SetupHazardWarning, check_setup, setup_hazards
-from paper_repro.sim.plant import Plant
+from paper_repro.sim.plant import plant_for
 from paper_repro.sim.result import FAULT_STATUSES, RESULT_ARRAYS, SimulationResult, run_metadata
 from paper_repro.solvers.factory import make_controller
-from paper_repro.vehicles.quadrotor import N_INPUTS, N_STATES, equilibrium
+from paper_repro.vehicles.base import VehicleModel
+from paper_repro.vehicles.quadrotor import quadrotor_model
 from paper_repro.world.lidar import Lidar
 from paper_repro.world.scenarios import make_scene
 from paper_repro.world.scene import Scene
@@ -48,8 +49,9 @@ class Faults:
 def simulate(config: Config | None = None, controller: Controller | None = None,
              max_steps: int | None = None, progress: bool | None = None,
              scene: Scene | None = None, faults: Faults | None = None,
-             initial_state=None) -> SimulationResult:
-    """Fly the configured scenario in closed loop.
+             initial_state=None, model: VehicleModel | None = None,
+             plant=None) -> SimulationResult:
+    """Fly the configured scenario in closed loop, with any vehicle.
 
     Parameters
     ----------
@@ -63,9 +65,17 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     scene : fly this scene instead of ``config.simulation.scenario`` (e.g. your own regions, or
         a variant made with ``dataclasses.replace``); it is saved with the result.
     faults : sensor faults to inject (:class:`Faults`); none by default.
-    initial_state : (12,) state to start from instead of hover at ``scene.start`` (to fly a
+    initial_state : (n_x,) state to start from instead of rest at ``scene.start`` (to fly a
         window of a mission from a state another flight reached, every solver from the same
         state; the clock still starts at t = 0, so use it on static scenes).
+    model : the :class:`~paper_repro.vehicles.base.VehicleModel` flown (default: the
+        controller's, ``controller.ocp.model``, else the quadrotor of ``config``). Its output
+        y = h(x) is what the LiDAR sees from, what keeps clear and what tracks the targets; its
+        ``position`` states start at ``scene.start`` (at rest, the other states zero); its
+        ``velocity`` states tell a stall. A planar vehicle (p = 2) flies a planar scene.
+    plant : what integrates the vehicle over T_s, an object with ``step(x, u) -> x_next``
+        (default :func:`~paper_repro.sim.plant.plant_for`: the quadrotor's RK45 in C, RK4 of
+        the model's own dynamics for any other vehicle).
 
     Before anything is built, :func:`~paper_repro.sim.checks.check_setup` rejects an inconsistent
     mission (``ValueError``) and :func:`~paper_repro.sim.checks.setup_hazards` warns of an unsafe
@@ -96,17 +106,17 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     sim, ts = cfg.simulation, cfg.nmpc.ts
     scene = scene if scene is not None else make_scene(sim.scenario, sim.seed)
     passage = sim.kind == "passage"
-    check_setup(cfg, scene)  # an inconsistent mission fails here, before anything is built
-    if initial_state is not None:
-        start = np.array(initial_state, dtype=float)
-        if start.shape != (N_STATES,) or not np.isfinite(start).all():
-            raise ValueError(f"initial_state must be a finite ({N_STATES},) state, got "
-                             f"{np.shape(initial_state)}")
-    hazards = setup_hazards(cfg, scene)
+    model = _vehicle(cfg, controller, model)
+    # An inconsistent mission fails here, before anything is built.
+    check_setup(cfg, scene, model)
+    x = _start_state(model, scene, initial_state)
+    hazards = setup_hazards(cfg, scene, model)
     for line in hazards["warnings"]:
         warnings.warn(f"{scene.name}: {line}", SetupHazardWarning, stacklevel=2)
-    lidar = Lidar(scene.clouds, sim.lidar_range, noise=cfg.sensor, motions=scene.motions)
-    plant = Plant(cfg.quadrotor, ts)  # RK45 in C, as solve_ivp (ODE45 in the paper)
+    lidar = Lidar(scene.clouds, sim.lidar_range, noise=cfg.sensor, motions=scene.motions,
+                  dim=scene.dim)
+    plant = plant if plant is not None else plant_for(model, cfg)
+    output = _output_map(model)
     truth = _TrueClearance(scene)
     tracker = None
     if sim.prediction == "kalman":
@@ -122,11 +132,8 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
                                 else (None, None))
     stall_steps = int(np.ceil(sim.stall_time / ts))
 
-    if initial_state is None:
-        x, _ = equilibrium(scene.start, 0.0, cfg.quadrotor)
-    else:
-        x = start.copy()
-    log = _Log(sim.max_steps)
+    log = _Log(sim.max_steps, model.nx, model.nu,
+               None if sim.prediction == "static" else (len(scene.clouds), scene.dim))
     reached = np.full(len(targets), -1)
     target_index, slow, outcome = 0, 0, "step_limit"
     plan: NMPCSolution | None = None
@@ -135,11 +142,13 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     meta["hazards"] = hazards
     bar = step_progress(sim.max_steps, progress)
     wall = time.perf_counter()
+    velocity = list(model.velocity)
+    y = output(x)
     for k in range(sim.max_steps):
         target = targets[target_index]
         t = k * ts
         measured = x if faults is None or faults.state is None else faults.state(k, x.copy())
-        visible = lidar.scan(x[:3], t)
+        visible = lidar.scan(y, t)
         if faults is not None and faults.scan is not None:
             visible = faults.scan(k, visible)
         visible, dropped = _finite_points(visible)
@@ -149,7 +158,9 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
             velocities = lidar.velocities(t)
         else:
             velocities = tracker.update(visible, t)
-        sol = _solve(ctl, measured, target, visible, plan, errors, velocities)
+        if velocities is not None:
+            log.region_velocities[k] = velocities  # what the controller is handed
+        sol = _solve(ctl, measured, target, visible, plan, errors, velocities, model)
         if sol.success:
             plan, last_good = sol, measured
         else:
@@ -158,11 +169,12 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
                 sol = dataclasses.replace(sol, x_a=plan.x_a, u_a=plan.u_a)
         in_a_row = in_a_row + 1 if sol.status in FAULT_STATUSES else 0
         u = plan.u[0]
-        log.record(k, t, x, u, sol, truth(x[:3], t), target_index,
+        log.record(k, t, x, u, sol, truth(y, t), target_index,
                    sum(len(v) for v in visible), dropped)
 
-        x = plant.step(x, u)
-        error = float(np.linalg.norm(x[:3] - target))
+        x, y_before = plant.step(x, u), y
+        y = output(x)
+        error = float(np.linalg.norm(y - target))
         if bar is not None:
             bar.update(1)
             if k % 50 == 0:
@@ -175,12 +187,13 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
             elif not passage:
                 outcome = "completed"
                 break
-        if passage and float(np.dot(x[:3] - finish_point, finish_dir)) >= 0.0:
+        if passage and float(np.dot(y - finish_point, finish_dir)) >= 0.0:
             outcome = "completed"
             break
         # Stalled: slow for stall_time while still far from the target (a deadlock).
-        slow = slow + 1 if (np.linalg.norm(x[6:9]) < sim.stall_speed
-                            and error > sim.stall_distance) else 0
+        speed = (np.linalg.norm(x[velocity]) if velocity
+                 else np.linalg.norm(y - y_before) / ts)
+        slow = slow + 1 if speed < sim.stall_speed and error > sim.stall_distance else 0
         if slow > stall_steps:
             outcome = "stalled"
             break
@@ -204,16 +217,54 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
                             config=cfg, meta=meta, **arrays)
 
 
+def _vehicle(config: Config, controller, model: VehicleModel | None) -> VehicleModel:
+    """The vehicle flown: ``model``, else the controller's, else the quadrotor of ``config``."""
+    if model is None:
+        ocp = getattr(controller, "ocp", None)
+        model = ocp.model if ocp is not None else quadrotor_model(config)
+    if not isinstance(model, VehicleModel):
+        raise ValueError(f"model must be a VehicleModel, got {type(model).__name__}")
+    return model
+
+
+def _start_state(model: VehicleModel, scene: Scene, initial_state) -> np.ndarray:
+    """``initial_state`` checked, or the vehicle at rest with its position states at
+    ``scene.start`` (for the quadrotor, hover there with zero yaw)."""
+    if initial_state is not None:
+        x = np.array(initial_state, dtype=float)
+        if x.shape != (model.nx,) or not np.isfinite(x).all():
+            raise ValueError(f"initial_state must be a finite ({model.nx},) state, got "
+                             f"{np.shape(initial_state)}")
+        return x
+    if len(model.position) != scene.dim:
+        raise ValueError(f"model {model.name!r} has {len(model.position)} position states and "
+                         f"scene {scene.name!r} is {scene.dim}-D: give the model's position "
+                         "(VehicleModel.position) or an initial_state")
+    x = np.zeros(model.nx)
+    x[list(model.position)] = scene.start
+    return x
+
+
+def _output_map(model: VehicleModel):
+    """y = h(x) as a function of a state array: an index when h selects states (as every
+    vehicle here does), else h evaluated."""
+    index = selected_states(model.output)
+    if index is not None:
+        return lambda x: x[index]
+    return lambda x: np.asarray(model.output(x), float).ravel()
+
+
 class _Log:
     """Preallocated per-step arrays of :func:`simulate` (no list growth in the loop)."""
 
-    def __init__(self, capacity: int):
+    def __init__(self, capacity: int, nx: int, nu: int, regions: tuple | None = None):
         self.n = 0
+        self.region_velocities = None if regions is None else np.empty((capacity, *regions))
         self.t = np.empty(capacity)
-        self.x = np.empty((capacity + 1, N_STATES))
-        self.u = np.empty((capacity, N_INPUTS))
-        self.x_a = np.empty((capacity, N_STATES))
-        self.u_a = np.empty((capacity, N_INPUTS))
+        self.x = np.empty((capacity + 1, nx))
+        self.u = np.empty((capacity, nu))
+        self.x_a = np.empty((capacity, nx))
+        self.u_a = np.empty((capacity, nu))
         self.solve_time = np.empty(capacity)
         self.iterations = np.empty(capacity, dtype=int)
         self.success = np.empty(capacity, dtype=bool)
@@ -239,6 +290,8 @@ class _Log:
         out = {k: getattr(self, k)[:n].copy() for k in RESULT_ARRAYS if k != "x"}
         out["x"] = self.x[:n + 1].copy()
         out["status"] = self.status[:n].astype(str)
+        if self.region_velocities is not None:
+            out["region_velocities"] = self.region_velocities[:n].copy()
         return out
 
 
@@ -263,8 +316,8 @@ class _TrueClearance:
                     if tree is not None), default=np.inf)
 
 
-def _solve(ctl, measured, target, visible, plan, errors: list,
-           velocities=None) -> NMPCSolution:
+def _solve(ctl, measured, target, visible, plan, errors: list, velocities,
+           model: VehicleModel) -> NMPCSolution:
     """The controller's solution, or a failed one with the fault's status: a non-finite
     measured state is never handed to the solver, and a solve that raises is recorded (its
     first messages in ``errors``) instead of ending the flight. ``velocities`` (one (3,) m/s
@@ -280,9 +333,9 @@ def _solve(ctl, measured, target, visible, plan, errors: list,
             status = "solve_error"
             if len(errors) < 20:
                 errors.append(f"{type(exc).__name__}: {exc}")
-    nan = np.full(N_STATES, np.nan)
-    return NMPCSolution(np.zeros((0, N_INPUTS)), np.zeros((0, N_STATES)), nan,
-                        np.full(N_INPUTS, np.nan), False, status, 0, 0.0, np.nan)
+    nx, nu = model.nx, model.nu
+    return NMPCSolution(np.zeros((0, nu)), np.zeros((0, nx)), np.full(nx, np.nan),
+                        np.full(nu, np.nan), False, status, 0, 0.0, np.nan)
 
 
 def _finite_points(visible) -> tuple[list[np.ndarray], int]:

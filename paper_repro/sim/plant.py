@@ -28,8 +28,9 @@ import casadi as ca
 import numpy as np
 
 from paper_repro._native import build_library, compiler
-from paper_repro.config import QuadrotorParams
+from paper_repro.config import Config, QuadrotorParams
 from paper_repro.validation import as_vector
+from paper_repro.vehicles.base import VehicleModel, rk4
 from paper_repro.vehicles.quadrotor import (
     N_INPUTS,
     N_STATES,
@@ -129,3 +130,30 @@ def _library(params: QuadrotorParams) -> ctypes.CDLL:
                                ctypes.c_void_p]
     return lib
 
+
+
+class ModelPlant:
+    """The plant of any :class:`~paper_repro.vehicles.base.VehicleModel`: its own dynamics
+    f_c, integrated by RK4 over T_s in ``substeps`` steps under zero-order hold of u.
+
+    ``step(x (n_x,), u (n_u,)) -> x_next (n_x,)``, as :class:`Plant`. A vehicle of your own
+    flies with this unless you give :func:`~paper_repro.sim.loop.simulate` a plant.
+    """
+
+    def __init__(self, model: VehicleModel, ts: float, substeps: int = 10):
+        self.model, self.ts, self.substeps = model, ts, substeps
+        self._step = rk4(model.dynamics, ts, substeps)
+
+    def step(self, x, u) -> np.ndarray:
+        x = as_vector("x", x, self.model.nx)
+        u = as_vector("u", u, self.model.nu)
+        return np.asarray(self._step(x, u), float).ravel()
+
+
+def plant_for(model: VehicleModel, config: Config):
+    """The plant a closed loop flies ``model`` with: the quadrotor's :class:`Plant` (RK45 in
+    C, as the paper's ODE45) for the quadrotor of ``config``; :class:`ModelPlant` for any other
+    vehicle."""
+    if model.name == "quadrotor":
+        return Plant(config.quadrotor, config.nmpc.ts)
+    return ModelPlant(model, config.nmpc.ts)

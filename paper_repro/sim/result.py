@@ -44,6 +44,10 @@ class SimulationResult:
     target_index : (K,) index of the active set-point.
     visible_points : (K,) number of points the LiDAR saw (after dropping non-finite ones).
     dropped_points : (K,) non-finite points dropped from the scan.
+    region_velocities : (K, n_regions, p) m/s, the velocities of the regions the controller
+        was handed at each step (the regions' true ones for ``prediction="oracle"``, the
+        tracker's estimates for ``"kalman"``); ``None`` for ``"static"`` (the paper: the
+        regions are taken to stay where they are seen).
     targets : (k, 3) m.   reached : (k,) step at which each target was reached (−1 if not).
     outcome : one of :data:`OUTCOMES`.
     scene : the :class:`~paper_repro.world.scene.Scene` flown, clouds and motions included (saved
@@ -71,6 +75,7 @@ class SimulationResult:
     scene: Scene
     config: Config
     meta: dict = field(default_factory=dict)
+    region_velocities: np.ndarray | None = None
 
     @property
     def steps(self) -> int:
@@ -97,16 +102,25 @@ class SimulationResult:
                 f"{np.percentile(st, 95):.2g} ms, failed solves {self.failures}")
 
     def to_frame(self):
-        """One row per step: t, position, Euler angles, velocities, thrusts, y_a, solver data."""
+        """One row per step: t, the state, the inputs, the artificial equilibrium, solver data.
+        The quadrotor's columns are named (x … p_psi, f1 … f4, x_a, y_a, z_a, f1_a … f4_a);
+        another vehicle's are ``x0 …``, ``u0 …``, ``x0_a …``, ``u0_a …``."""
         import pandas as pd
 
-        names = ["x", "y", "z", "phi", "theta", "psi", "vx", "vy", "vz", "p_phi", "p_theta",
-                 "p_psi"]
+        nx, nu = self.x.shape[1], self.u.shape[1]
+        if (nx, nu) == (12, 4):
+            names = ["x", "y", "z", "phi", "theta", "psi", "vx", "vy", "vz", "p_phi",
+                     "p_theta", "p_psi"]
+            inputs = [f"f{i + 1}" for i in range(4)]
+            rest = [(f"{c}_a", i) for i, c in enumerate("xyz")]
+        else:
+            names, inputs = [f"x{i}" for i in range(nx)], [f"u{i}" for i in range(nu)]
+            rest = [(f"x{i}_a", i) for i in range(nx)]
         data = {"t": self.t}
         data.update({n: self.x[:-1, i] for i, n in enumerate(names)})
-        data.update({f"f{i + 1}": self.u[:, i] for i in range(4)})
-        data.update({f"{c}_a": self.x_a[:, i] for i, c in enumerate("xyz")})
-        data.update({f"f{i + 1}_a": self.u_a[:, i] for i in range(4)})
+        data.update({n: self.u[:, i] for i, n in enumerate(inputs)})
+        data.update({n: self.x_a[:, i] for n, i in rest})
+        data.update({f"{n}_a": self.u_a[:, i] for i, n in enumerate(inputs)})
         data.update({"solve_time": self.solve_time, "iterations": self.iterations,
                      "success": self.success, "status": self.status,
                      "clearance": self.clearance, "target_index": self.target_index,
@@ -121,6 +135,8 @@ class SimulationResult:
         out.mkdir(parents=True, exist_ok=True)
         arrays = {k: getattr(self, k) for k in RESULT_ARRAYS}
         clouds = {f"cloud_{i}": c for i, c in enumerate(self.scene.clouds)}
+        if self.region_velocities is not None:
+            arrays["region_velocities"] = self.region_velocities
         np.savez_compressed(out / "result.npz", status=self.status.astype(str),
                             targets=self.targets, reached=self.reached, **arrays, **clouds)
         payload = {"config": self.config.to_dict(), "scene": self.scene.to_dict(),

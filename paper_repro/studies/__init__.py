@@ -38,6 +38,7 @@ from paper_repro.studies.catalogue import (
     timeline_flights,
     timeline_study,
 )
+from paper_repro.studies.cluster import dask_client
 from paper_repro.studies.engine import (
     CSV_ROWS,
     TIMING_COLUMNS,
@@ -69,6 +70,7 @@ __all__ = [
     "check_parameters",
     "controller_key",
     "CSV_ROWS",
+    "dask_client",
     "declared_parameters",
     "default_result_dir",
     "DESCRIPTION",

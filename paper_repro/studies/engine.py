@@ -44,13 +44,17 @@ from paper_repro.analysis import metrics
 from paper_repro.config import Config, SensorParams, SimulationParams
 from paper_repro.progress import duration
 from paper_repro.studies.catalogue import Study
+from paper_repro.studies.cluster import dask_client
 from paper_repro.studies.runs import RunSpec, ensure_result
 
 CSV_ROWS = 5_000
 """Tables up to this many rows are also written as CSV (readable in a diff)."""
 
-TIMING_COLUMNS = (*metrics.TIMING_COLUMNS, "task_time_s", "worker", "simulated", "result_dir")
-"""Columns that depend on the machine, the load or the cache, not on the flight."""
+TIMING_COLUMNS = (*metrics.TIMING_COLUMNS, "task_time_s", "worker", "simulated", "result_dir",
+                  "controller_builds")
+"""Columns that depend on the machine, the load or the cache, not on the flight
+(``controller_builds``: controllers the run's worker process had built when it finished the
+run; a worker builds one per configuration)."""
 
 
 @dataclass
@@ -156,6 +160,7 @@ def run_task(spec: RunSpec, runs_dir: str, force: bool = False) -> dict:
         row.update(_failure(exc))
     row["task_time_s"] = time.perf_counter() - t0
     row["worker"] = f"{os.uname().nodename}:{os.getpid()}"
+    row["controller_builds"] = _controller.cache_info().misses  # this worker's, so far
     return row
 
 
@@ -178,21 +183,9 @@ def load_table(directory, timings: bool = True):
 def _run_on_dask(specs, runs_dir: str, force: bool, done, workers, scheduler, client,
                  log) -> None:
     """Submit every spec as a task, hand each row to ``done`` as it arrives."""
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import as_completed
 
-    cluster = own_client = None
-    if client is None:
-        if scheduler is not None:
-            client = own_client = Client(scheduler)
-        else:
-            n = workers if workers else (os.cpu_count() or 1)
-            # One single-threaded process per core: the closed loop is CPU-bound Python + C.
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                   dashboard_address=":0", silence_logs=40)
-            client = own_client = Client(cluster)
-    log(f"dask: {len(client.scheduler_info()['workers'])} worker(s), dashboard "
-        f"{client.dashboard_link}")
-    try:
+    with dask_client(workers, scheduler, client, log) as client:
         # Build each distinct controller once first, the configurations spread over the
         # workers: compiling one takes a minute, and every worker would otherwise compile the
         # same C at the same time. The libraries land in the disk cache the runs load from.
@@ -212,11 +205,6 @@ def _run_on_dask(specs, runs_dir: str, force: bool, done, workers, scheduler, cl
                 row = {"name": specs[i].name, "key": specs[i].key[:12], **dict(specs[i].labels),
                        **_failure(exc), "task_time_s": float("nan"), "worker": ""}
             done(i, row)
-    finally:
-        if own_client is not None:
-            own_client.close()
-        if cluster is not None:
-            cluster.close()
 
 
 @functools.lru_cache(maxsize=8)

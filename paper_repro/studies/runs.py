@@ -29,6 +29,8 @@ import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from paper_repro import paths
 from paper_repro.config import Config
 
@@ -113,10 +115,19 @@ def ensure_result(spec: RunSpec, results_dir=None, force: bool = False,
     Returns (folder, simulated).
     """
     out = spec.directory(results_dir)
-    if is_cached(out) and not force:
+    if is_cached(out) and not force and _holds_what_it_needs(out, spec):
         return out, False
     store(fly(spec, controller=controller, progress=progress), out)
     return out, True
+
+
+def _holds_what_it_needs(directory: Path, spec: RunSpec) -> bool:
+    """A run that predicts moving regions carries the velocities it handed the controller
+    (results saved before the loop logged them are flown again, once)."""
+    if spec.config.simulation.prediction == "static":
+        return True
+    with np.load(directory / "result.npz") as z:
+        return "region_velocities" in z.files
 
 
 def fly(spec: RunSpec, controller=None, progress: bool | None = None):
@@ -131,8 +142,10 @@ def fly(spec: RunSpec, controller=None, progress: bool | None = None):
 def store(result, out) -> Path:
     """Save ``result`` into ``out`` atomically: written under a private name, then renamed.
 
-    When another process completed the same folder meanwhile, its copy is kept (both flew
-    the same spec) and ours is discarded.
+    A folder already at ``out`` is replaced (a forced re-flight, or a result missing what its
+    run needs). When another process renames its complete copy into place between that
+    removal and our rename, the rename fails and its copy is kept (both flew the same spec);
+    ours is discarded. A reader never sees a half-written folder.
     """
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)

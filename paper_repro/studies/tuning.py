@@ -40,6 +40,7 @@ and never overlap the candidates, so their stall rates are an unbiased compariso
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
@@ -60,6 +61,7 @@ from paper_repro.studies.catalogue import (
     passage_config,
     passage_spec,
 )
+from paper_repro.studies.cluster import dask_client
 from paper_repro.studies.engine import run_study
 from paper_repro.studies.runs import RunSpec
 from paper_repro.studies.tuning_space import (
@@ -239,10 +241,10 @@ def tune(trials: int = DEFAULT_TRIALS, quick: bool = False, workers: int | None 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     directions = ["minimize"] * len(objectives)
     existing = _load_existing(study_name, storage)
-    with tuning_cluster(workers, scheduler, client, log) as dask_client:
+    with tuning_client(workers, scheduler, client, log) as cluster_client:
         if existing is None:
             train = tuple(seeds) if seeds is not None else training_scenes(
-                spec["scenes"], max_steps=max_steps, base=base, client=dask_client,
+                spec["scenes"], max_steps=max_steps, base=base, client=cluster_client,
                 runs_dir=runs_dir, require_completion=not quick, log=log)
             _check_disjoint(train)
         else:
@@ -272,8 +274,8 @@ def tune(trials: int = DEFAULT_TRIALS, quick: bool = False, workers: int | None 
             "sampler": sampler, "seed": seed, **stored,
             "space_why": {n: r.why for n, r in space.items()}})
         remaining = trials - len(finished_trials(study))
-        n_jobs = 1 if dask_client is None else max(
-            1, len(dask_client.scheduler_info()["workers"]))
+        n_jobs = 1 if cluster_client is None else max(
+            1, len(cluster_client.scheduler_info()["workers"]))
         log(f"tune: study {study_name!r} in {storage}: {len(finished_trials(study))} finished "
             f"trials, {max(remaining, 0)} to run on {n_jobs} worker(s); training scenes "
             f"{list(train)}")
@@ -283,8 +285,8 @@ def tune(trials: int = DEFAULT_TRIALS, quick: bool = False, workers: int | None 
             params = suggest(trial, space)
             table = run_study(
                 trial_study(params, train, max_steps, base, f"trial-{trial.number:04d}"),
-                out=trials_dir / f"trial-{trial.number:04d}", client=dask_client,
-                workers=0 if dask_client is None else None, runs_dir=runs_dir,
+                out=trials_dir / f"trial-{trial.number:04d}", client=cluster_client,
+                workers=0 if cluster_client is None else None, runs_dir=runs_dir,
                 progress=False, log=lambda line: None).table
             values, constraints = evaluate_table(table, objectives, not quick,
                                                  max_steps * base.nmpc.ts)
@@ -480,43 +482,6 @@ def trial_constraints(trial) -> list[float]:
     return list(trial.user_attrs.get("constraints", [math.inf] * len(CONSTRAINTS)))
 
 
-class tuning_cluster:
-    """Context: a Dask client for the whole tuning (the embedded cluster is started once, not
-    per trial); ``None`` for ``workers=0``; an outside ``client`` is passed through."""
-
-    def __init__(self, workers, scheduler, client, log):
-        self.args = workers, scheduler, client, log
-        self.own = self.cluster = None
-
-    def __enter__(self):
-        workers, scheduler, client, log = self.args
-        if client is not None:
-            return client
-        if scheduler is None and workers == 0:
-            return None
-        import os
-
-        from distributed import Client, LocalCluster
-
-        if scheduler is not None:
-            self.own = Client(scheduler)
-        else:
-            self.cluster = LocalCluster(n_workers=workers or (os.cpu_count() or 1),
-                                        threads_per_worker=1, processes=True,
-                                        dashboard_address=":0", silence_logs=40)
-            self.own = Client(self.cluster)
-        log(f"dask: {len(self.own.scheduler_info()['workers'])} worker(s), dashboard "
-            f"{self.own.dashboard_link}")
-        return self.own
-
-    def __exit__(self, *exc):
-        if self.own is not None:
-            self.own.close()
-        if self.cluster is not None:
-            self.cluster.close()
-        return False
-
-
 def _fmt_params(params: Mapping[str, float]) -> str:
     return ", ".join(f"{n} {v:g}" for n, v in params.items())
 
@@ -545,3 +510,11 @@ def _scene_records(table) -> list[dict]:
             rec[c] = v
         recs.append(rec)
     return recs
+
+
+def tuning_client(workers, scheduler, client, log):
+    """Context: the Dask client of a whole tuning (``cluster.dask_client``, started once,
+    not per trial), or ``None`` for ``workers=0``: the trials fly in this process."""
+    if client is None and scheduler is None and workers == 0:
+        return contextlib.nullcontext(None)
+    return dask_client(workers, scheduler, client, log)

@@ -82,7 +82,10 @@ class VehicleModel:
     position : indices of the states that are the vehicle's position, along which its dynamics
         are invariant. The real-time solver moves the previous plan along them to where the
         vehicle is (:meth:`~paper_repro.problem.ocp.NMPCSolution.reanchored`); ``()`` shifts it in
-        time instead.
+        time instead. :func:`~paper_repro.sim.loop.simulate` starts the vehicle at rest with
+        these states at the scene's start.
+    velocity : indices of the states that are the vehicle's velocity (m/s), which the closed
+        loop reads to tell a stall; ``()``: the output's change over a step tells it instead.
     """
 
     name: str
@@ -95,6 +98,7 @@ class VehicleModel:
     equilibria: Equilibria | None = None
     rest_input: tuple[float, ...] | None = None
     position: tuple[int, ...] = ()
+    velocity: tuple[int, ...] = ()
 
     def __post_init__(self):
         if not (isinstance(self.name, str) and self.name.isidentifier()):
@@ -131,9 +135,10 @@ class VehicleModel:
                     and all(a < b for a, b in zip(e.lower, e.upper))):
                 raise ValueError(f"equilibria.lower < equilibria.upper must hold for all {na} "
                                  "parameters (or both be None)")
-        if not all(isinstance(i, int) and 0 <= i < nx for i in self.position):
-            raise ValueError(f"position must hold state indices in [0, {nx}), got "
-                             f"{self.position!r}")
+        for name in ("position", "velocity"):
+            if not all(isinstance(i, int) and 0 <= i < nx for i in getattr(self, name)):
+                raise ValueError(f"{name} must hold state indices in [0, {nx}), got "
+                                 f"{getattr(self, name)!r}")
         if self.rest_input is not None and len(self.rest_input) != nu:
             raise ValueError(f"rest_input must have {nu} entries, got {self.rest_input!r}")
 

@@ -90,7 +90,7 @@ def quadrotor_model(config: Config | None = None) -> VehicleModel:
     return VehicleModel(
         "quadrotor", symbolic_dynamics(cfg.quadrotor), ca.Function("h", [x], [x[:3]]),
         p.state_lower, p.state_upper, p.input_lower, p.input_upper, equilibria,
-        position=(0, 1, 2))
+        position=(0, 1, 2), velocity=(6, 7, 8))
 
 
 def plant_step(x, u, ts: float, params: QuadrotorParams | None = None,

@@ -7,7 +7,7 @@ the LiDAR sees of them.
 ``scene``          :class:`Region`, :class:`Scene` (saved with every result)
 ``scenarios``      the named scenes, :func:`make_scene`
 ``random_scenes``  seeded random obstacle fields across a straight flight
-``planar``         a planar scene for a ground robot, and a 2-D LiDAR
+``planar``         a planar scene (p = 2) for a ground robot
 ``lidar``          :class:`Lidar`, the virtual LiDAR (optionally imperfect)
 ``tracking``       :class:`RegionTracker`, a Kalman filter of the regions' velocities
 =================  ==================================================================
@@ -15,7 +15,7 @@ the LiDAR sees of them.
 
 from paper_repro.world.lidar import Lidar
 from paper_repro.world.motion import Motion
-from paper_repro.world.planar import PlanarRun, PlanarScene, fly, planar_scan, planar_scene
+from paper_repro.world.planar import planar_scene
 from paper_repro.world.random_scenes import (
     NONCONVEX_KINDS,
     REGION_KINDS,
@@ -57,7 +57,6 @@ __all__ = [
     "Cylinder",
     "Difference",
     "encounter_scene",
-    "fly",
     "halton_cloud",
     "Lidar",
     "make_scene",
@@ -68,10 +67,7 @@ __all__ = [
     "ONCOMING_SPEED",
     "paper_scene",
     "passage_progress",
-    "planar_scan",
     "planar_scene",
-    "PlanarRun",
-    "PlanarScene",
     "random_scene",
     "RandomSceneParams",
     "Region",

@@ -26,6 +26,8 @@ class Lidar:
         is a ``SensorParams`` with its defaults). See :meth:`scan` for the model.
     motions : ``None`` (static regions), or one :class:`Motion` or ``None`` per region (as
         :attr:`Scene.motions`): region i is seen at ``clouds[i] + motions[i].offset(t)``.
+    dim : p, the dimension of the points and of the sensor's position: 3, or 2 for a planar
+        scene (a 2-D LiDAR).
 
     Static regions: one KD-tree over all points is built at construction and :meth:`scan` is
     one ball query. With motions: one KD-tree per region, each queried at the sensor's
@@ -33,7 +35,7 @@ class Lidar:
     """
 
     def __init__(self, clouds, range_: float = 3.0, noise: SensorParams | None = None,
-                 motions=None):
+                 motions=None, dim: int = 3):
         if not (is_number(range_) and math.isfinite(range_) and range_ > 0):
             raise ValueError(f"lidar range must be a finite number > 0 (m), got {range_!r}")
         if isinstance(clouds, np.ndarray) or not isinstance(clouds, (tuple, list)):
@@ -44,13 +46,16 @@ class Lidar:
         if noise is not None and not isinstance(noise, SensorParams):
             raise ValueError(f"noise must be a SensorParams or None, got {noise!r}")
         self.range = float(range_)
-        self.clouds = tuple(cloud_array(f"clouds[{i}]", c, allow_empty=True)
+        if dim not in (2, 3):
+            raise ValueError(f"dim must be 3 (or 2 for a planar scene), got {dim!r}")
+        self.dim = dim
+        self.clouds = tuple(cloud_array(f"clouds[{i}]", c, allow_empty=True, dim=self.dim)
                             for i, c in enumerate(clouds))
         self.motions = checked_motions("lidar motions", motions, len(self.clouds))
         self.noise = noise if noise is not None else SensorParams()
         self._labels = np.concatenate(
             [np.full(len(c), i) for i, c in enumerate(self.clouds)] or [np.zeros(0, int)])
-        points = np.concatenate(self.clouds) if self.clouds else np.zeros((0, 3))
+        points = np.concatenate(self.clouds) if self.clouds else np.zeros((0, self.dim))
         self._points = points
         self._tree = cKDTree(points) if len(points) else None
         if self.motions is not None:
@@ -66,7 +71,7 @@ class Lidar:
     def offsets(self, t: float = 0.0) -> np.ndarray:
         """(n_regions, 3) m, each region's offset c_i(t) from its stored cloud (zero when
         static)."""
-        shifts = np.zeros((len(self.clouds), 3))
+        shifts = np.zeros((len(self.clouds), self.dim))
         if self.motions is not None:
             for i, m in enumerate(self.motions):
                 if m is not None:
@@ -78,8 +83,8 @@ class Lidar:
         region, m/s (zeros for a static region). The oracle a predictor can be given."""
         require_time(t)
         if self.motions is None:
-            return [np.zeros(3) for _ in self.clouds]
-        return [np.zeros(3) if m is None else m.velocity(t) for m in self.motions]
+            return [np.zeros(self.dim) for _ in self.clouds]
+        return [np.zeros(self.dim) if m is None else m.velocity(t) for m in self.motions]
 
     def scan(self, position, t: float = 0.0) -> list[np.ndarray]:
         """Visible points of each region at time ``t`` (s; only moving regions depend on it):
@@ -100,11 +105,11 @@ class Lidar:
           scene without any point has no region to give them to, and they are dropped.
         """
         p = np.asarray(position, float)
-        if p.shape != (3,) or not np.all(np.isfinite(p)):
-            raise ValueError(f"position must be a finite (3,) array, got {p!r}")
+        if p.shape != (self.dim,) or not np.all(np.isfinite(p)):
+            raise ValueError(f"position must be a finite ({self.dim},) array, got {p!r}")
         require_time(t)
         if self._tree is None:
-            return [np.zeros((0, 3)) for _ in self.clouds]
+            return [np.zeros((0, self.dim)) for _ in self.clouds]
         if self.motions is not None:
             return self._moving_scan(p, t)
         idx = np.sort(np.asarray(self._tree.query_ball_point(p, self.range), dtype=int))

@@ -37,7 +37,8 @@ WORKSPACE_UPPER = np.array([25.0, 25.0, 25.0])
 
 @dataclass(frozen=True)
 class Region:
-    """A nonfeasible region: a ``shape`` sampled at ``density`` points per m³."""
+    """A nonfeasible region: a ``shape`` sampled at ``density`` points per m³, or (``shape``
+    ``None``) points given by the scene's ``clouds``, as a planar scene's are."""
 
     name: str
     shape: object
@@ -46,7 +47,8 @@ class Region:
     def __post_init__(self):
         if not (isinstance(self.name, str) and self.name):
             raise ValueError(f"Region.name must be a non-empty str, got {self.name!r}")
-        require_shape(f"Region {self.name!r} shape", self.shape)
+        if self.shape is not None:
+            require_shape(f"Region {self.name!r} shape", self.shape)
         if not (is_number(self.density) and math.isfinite(self.density) and self.density > 0):
             raise ValueError(
                 f"density must be a finite number > 0 (points/m³), got {self.density!r}")
@@ -60,12 +62,13 @@ class Scene:
     ----------
     name : str.
     regions : tuple of :class:`Region`.
-    start : (3,) initial position, m.
-    targets : (k, 3) set-points y_t, m, visited in sequence.
+    start : (p,) initial position, m: p = 3 in the workspace of the paper, p = 2 for a planar
+        scene (a ground robot's); every other position and cloud of the scene has p entries.
+    targets : (k, p) set-points y_t, m, visited in sequence.
     seed : base seed of the Halton clouds (region i uses ``seed + i``).
     finish : ``None``, or a finish line ``(point, direction)`` (each (3,), m and unit vector)
         for a *passage*: the run ends once ``(y − point)·direction ≥ 0``.
-    clouds : tuple of (m_i, 3) arrays, m. Sampled from the regions when omitted; given when a
+    clouds : tuple of (m_i, p) arrays, m. Sampled from the regions when omitted; given when a
         scene is rebuilt from a saved result, so that a run redraws against its own points
         whatever the generators do later. For a moving region, the points where its offset
         is zero (each scene's builder says when that is).
@@ -94,31 +97,45 @@ class Scene:
         targets = np.asarray(self.targets, float)
         if targets.ndim == 1:
             targets = targets[None]
-        for label, pts in (("start", start[None]), ("targets", targets)):
-            if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
-                raise ValueError(f"{label} must be finite 3-D positions, got shape {pts.shape}")
+        if start.shape not in ((2,), (3,)) or not np.all(np.isfinite(start)):
+            raise ValueError(f"start must be a finite 3-D (or planar 2-D) position, got shape "
+                             f"{start.shape}")
+        dim = len(start)
+        if targets.ndim != 2 or targets.shape[1] != dim or not np.all(np.isfinite(targets)):
+            raise ValueError(f"targets must be finite {dim}-D positions (as the start), got "
+                             f"shape {targets.shape}")
         if len(targets) == 0:
-            raise ValueError("targets must hold at least one 3-D position")
+            raise ValueError(f"targets must hold at least one {dim}-D position")
         if self.finish is not None:
             point, direction = (np.asarray(v, float) for v in self.finish)
-            if point.shape != (3,) or direction.shape != (3,) or not (
+            if point.shape != (dim,) or direction.shape != (dim,) or not (
                     np.all(np.isfinite(point)) and np.isclose(np.linalg.norm(direction), 1.0)):
-                raise ValueError("finish must be (point (3,), unit direction (3,)), got "
-                                 f"{self.finish!r}")
+                raise ValueError(f"finish must be (point ({dim},), unit direction ({dim},)), "
+                                 f"got {self.finish!r}")
         if self.clouds is None:
+            unsampled = [r.name for r in self.regions if r.shape is None]
+            if unsampled or dim != 3:
+                raise ValueError(f"clouds must be given for a planar scene or a region without "
+                                 f"a shape ({unsampled or 'planar'})")
             clouds = tuple(halton_cloud(r.shape, r.density, self.seed + i)
                            for i, r in enumerate(self.regions))
         else:
             if len(self.clouds) != len(self.regions):
-                raise ValueError(f"clouds must hold one (m, 3) array per region "
+                raise ValueError(f"clouds must hold one (m, {dim}) array per region "
                                  f"({len(self.regions)}), got {len(self.clouds)}")
-            clouds = tuple(cloud_array(f"clouds[{i}]", c) for i, c in enumerate(self.clouds))
+            clouds = tuple(cloud_array(f"clouds[{i}]", c, dim=dim)
+                           for i, c in enumerate(self.clouds))
         for r, c in zip(self.regions, clouds, strict=True):
             if len(c) == 0:
                 raise ValueError(f"region {r.name!r} holds no point at density {r.density}")
         object.__setattr__(self, "clouds", clouds)
         object.__setattr__(self, "motions",
                            checked_motions("motions", self.motions, len(self.regions)))
+
+    @property
+    def dim(self) -> int:
+        """p, the dimension of the scene's positions: 3, or 2 for a planar scene."""
+        return len(self.start)
 
     @property
     def is_moving(self) -> bool:
@@ -135,15 +152,15 @@ class Scene:
 
     @property
     def all_points(self) -> np.ndarray:
-        """(Σm_i, 3) every point of every region."""
-        return np.concatenate(self.clouds) if self.clouds else np.zeros((0, 3))
+        """(Σm_i, p) every point of every region."""
+        return np.concatenate(self.clouds) if self.clouds else np.zeros((0, self.dim))
 
     def fingerprint(self) -> str:
         """SHA-256 (hex) of the start, the targets, the finish line, every cloud point and, for
         a moving scene only, the motions: two scenes with the same fingerprint are flown
         identically (and a static scene's fingerprint is the one it had before motions)."""
         digest = hashlib.sha256()
-        finish = np.zeros((0, 3)) if self.finish is None else np.asarray(self.finish, float)
+        finish = np.zeros((0, self.dim)) if self.finish is None else np.asarray(self.finish, float)
         for block in (self.start, self.targets, finish, *self.clouds):
             digest.update(np.ascontiguousarray(block, dtype=np.float64).tobytes())
         if self.is_moving:
@@ -168,7 +185,8 @@ class Scene:
                 "finish": None if self.finish is None else
                 [np.asarray(v, float).tolist() for v in self.finish],
                 "regions": [{"name": r.name, "density": r.density,
-                             "shape": shape_to_dict(r.shape)} for r in self.regions]}
+                             "shape": None if r.shape is None else shape_to_dict(r.shape)}
+                            for r in self.regions]}
         if self.is_moving:
             data["motions"] = [None if m is None else m.to_dict() for m in self.motions]
         data["fingerprint"] = self.fingerprint()
@@ -178,7 +196,8 @@ class Scene:
     def from_dict(cls, data: dict, clouds=None) -> Scene:
         """Rebuild a scene from :meth:`to_dict`; with ``clouds`` (one (m_i, 3) array per
         region) the points are taken as stored, and the stored fingerprint must match."""
-        regions = tuple(Region(r["name"], shape_from_dict(r["shape"]), r["density"])
+        regions = tuple(Region(r["name"], None if r["shape"] is None
+                               else shape_from_dict(r["shape"]), r["density"])
                         for r in data["regions"])
         finish = None if data.get("finish") is None else tuple(
             tuple(v) for v in data["finish"])
@@ -207,15 +226,16 @@ def checked_motions(name: str, motions, count: int) -> tuple | None:
     return None if all(m is None for m in motions) else tuple(motions)
 
 
-def cloud_array(name: str, cloud, allow_empty: bool = False) -> np.ndarray:
-    """``cloud`` as a float (m, 3) array, checked (never reshaped)."""
+def cloud_array(name: str, cloud, allow_empty: bool = False, dim: int = 3) -> np.ndarray:
+    """``cloud`` as a float (m, dim) array, checked (never reshaped); dim = 3, or 2 in a
+    planar scene."""
     try:
         arr = np.asarray(cloud, float)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be an (m, 3) array of points, got "
+        raise ValueError(f"{name} must be an (m, {dim}) array of points, got "
                          f"{type(cloud).__name__}") from None
-    if arr.ndim != 2 or arr.shape[1] != 3 or (arr.shape[0] == 0 and not allow_empty):
-        raise ValueError(f"{name} must be an (m, 3) array of points (m ≥ "
+    if arr.ndim != 2 or arr.shape[1] != dim or (arr.shape[0] == 0 and not allow_empty):
+        raise ValueError(f"{name} must be an (m, {dim}) array of points (m ≥ "
                          f"{0 if allow_empty else 1}), got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
