@@ -223,9 +223,10 @@ def quick_tuning(tmp_path_factory):
     from paper_repro.studies.tuning_results import run_heldout
 
     base = tmp_path_factory.getbasetemp() / "tuning"
-    res = tuning.tune(3, quick=True, workers=0, base=TINY, seeds=(0, 1), max_steps=60,
-                      space={"sigma": None, "d_min": (1.0, 1.5, 0.5)}, out=base / "out",
-                      runs_dir=base / "runs", log=lambda line: None)
+    settings = tuning.TuningSettings(3, quick=True, base=TINY, seeds=(0, 1), max_steps=60,
+                                     space={"sigma": None, "d_min": (1.0, 1.5, 0.5)},
+                                     out=base / "out", runs_dir=base / "runs")
+    res = tuning.tune(settings, workers=0, log=lambda line: None)
     run_heldout(res, 2, runs_dir=base / "runs", log=lambda line: None)
     return res
 

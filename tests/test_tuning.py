@@ -51,7 +51,8 @@ def test_a_bad_range_names_its_parameter_before_any_trial(space, message, monkey
 
     monkeypatch.setattr(T, "run_study", never)
     with pytest.raises(ValueError, match=message):
-        T.tune(2, workers=0, space=space, seeds=(0,), out=tmp_path, runs_dir=tmp_path / "r")
+        T.tune(T.TuningSettings(2, space=space, seeds=(0,), out=tmp_path,
+                                runs_dir=tmp_path / "r"), workers=0)
     assert not (tmp_path / "tuning.db").exists()
 
 
@@ -66,10 +67,10 @@ def test_a_bad_range_names_its_parameter_before_any_trial(space, message, monkey
 ])
 def test_other_bad_input_is_named(kwargs, message, monkeypatch, tmp_path):
     monkeypatch.setattr(T, "run_study", lambda *a, **k: pytest.fail("a run was started"))
-    args = {"trials": 2, "workers": 0, "seeds": (0,), "out": tmp_path,
-            "runs_dir": tmp_path / "r"} | kwargs
+    args = {"trials": 2, "seeds": (0,), "out": tmp_path, "runs_dir": tmp_path / "r"} | kwargs
+    workers = args.pop("workers", 0)
     with pytest.raises(ValueError, match=message):
-        T.tune(**args)
+        T.tune(T.TuningSettings(**args), workers=workers)
 
 
 def test_every_default_range_holds_the_printed_value_on_its_grid():
@@ -165,9 +166,9 @@ def test_no_feasible_trial_means_no_front_to_pick_from():
 # --- closed loop: resume --------------------------------------------------------------------
 
 def _tune(tmp_path, trials, **kw):
-    return T.tune(trials, quick=True, workers=0, space=SIGMA_ONLY, seeds=(0,), max_steps=40,
-                  base=TINY, out=tmp_path / "tuning", runs_dir=tmp_path / "runs",
-                  log=lambda line: None, **kw)
+    settings = T.TuningSettings(trials, quick=True, space=SIGMA_ONLY, seeds=(0,), max_steps=40,
+                                base=TINY, out=tmp_path / "tuning", runs_dir=tmp_path / "runs")
+    return T.tune(settings, workers=0, log=lambda line: None, **kw)
 
 
 def test_a_resumed_study_continues_the_trial_count(tmp_path):
@@ -199,9 +200,9 @@ def test_a_resumed_study_continues_the_trial_count(tmp_path):
 def test_a_resumed_study_must_be_the_same_study(tmp_path):
     _tune(tmp_path, 1)
     with pytest.raises(ValueError, match="max_steps: the stored study"):
-        T.tune(2, quick=True, workers=0, space=SIGMA_ONLY, seeds=(0,), max_steps=30,
-               base=TINY, out=tmp_path / "tuning", runs_dir=tmp_path / "runs",
-               log=lambda line: None)
+        T.tune(T.TuningSettings(2, quick=True, space=SIGMA_ONLY, seeds=(0,), max_steps=30,
+                                base=TINY, out=tmp_path / "tuning",
+                                runs_dir=tmp_path / "runs"), workers=0, log=lambda line: None)
 
 
 def test_heldout_scenes_are_never_training_scenes_and_shared_setups_fly_once(tmp_path):

@@ -13,6 +13,7 @@ from paper_repro.studies.tuning import (
     DEFAULT_TRIALS,
     HELDOUT_SEEDS,
     QUICK,
+    TuningSettings,
     check_tune_args,
     tune,
     tuning_client,
@@ -82,9 +83,10 @@ def main(args) -> int:
             raise ValueError(f"--{name} must be an integer >= 0, got {getattr(args, name)}")
     t0 = time.perf_counter()
     with tuning_client(args.workers, args.scheduler, None, log) as client:
-        res = tune(trials, quick=quick, client=client, storage=args.storage,
-                   objectives=args.objectives, scenes=args.scenes, sampler=args.sampler,
-                   seed=args.seed, out=out, log=log)
+        settings = TuningSettings(trials, quick=quick, storage=args.storage,
+                                  objectives=args.objectives, scenes=args.scenes,
+                                  sampler=args.sampler, seed=args.seed, out=out)
+        res = tune(settings, client=client, log=log)
         if heldout:
             run_heldout(res, heldout, client=client, log=log)
     print(f"tune: {len(finished_trials(res.study))} trials, {res.flown_trials} run now, in "

@@ -186,40 +186,64 @@ class TuningResult:
     wall_time_s: float
 
 
-def tune(trials: int = DEFAULT_TRIALS, quick: bool = False, workers: int | None = None,
-         scheduler: str | None = None, client=None, storage: str | None = None,
-         study_name: str = STUDY_NAME, space: Mapping | None = None,
-         objectives: Sequence[str] = DEFAULT_OBJECTIVES, scenes: int | None = None,
-         seeds: Sequence[int] | None = None, sampler: str = "tpe", seed: int = 0,
-         max_steps: int | None = None, base: Config | None = None, out=None, runs_dir=None,
-         log: Callable[[str], None] = print,
-         callbacks: Sequence[Callable] = ()) -> TuningResult:
-    """Run (or resume) the tuning study until it holds ``trials`` finished trials.
+@dataclass(frozen=True)
+class TuningSettings:
+    """What a tuning is: the study it runs (or resumes), on which scenes, towards what.
 
-    Parameters
+    Attributes
     ----------
     trials : finished trials the study should hold in all. A resumed study counts the ones it
-        has and runs only the rest; trials left running by a killed driver are marked failed and
-        their parameters queued again (their finished flights come back from the cache).
+        has and runs only the rest; trials left running by a killed driver are marked failed
+        and their parameters queued again (their finished flights come back from the cache).
     quick : 400-step runs, 2 scenes, 4 trials by default (CI).
-    workers, scheduler, client : as :func:`~paper_repro.studies.engine.run_study`; as many trials
-    run at
-        once as there are workers (``workers=0``: one at a time, in this process).
-    storage : RDB URL (default ``sqlite:///<out>/tuning.db``).
-    study_name : name of the Optuna study in the storage.
     space : ``{name: ParamRange | (low, high[, step])}``, or a sequence of names, or ``None``
-        for :data:`SEARCH_SPACE` (see :func:`search_space`).
-    objectives : names from :data:`OBJECTIVES` (all minimised).
+        for :data:`~paper_repro.studies.tuning_space.SEARCH_SPACE` (see ``search_space``).
+    objectives : names from :data:`~paper_repro.studies.tuning_space.OBJECTIVES` (all
+        minimised).
     scenes : number of training scenes (4; 2 with ``quick``), chosen by
         :func:`training_scenes`; or ``seeds`` gives them explicitly.
+    seeds : the training scenes' seeds, instead of ``scenes``.
     sampler : ``"tpe"`` (multi-objective TPE, the default) or ``"nsga2"``, both with the
-        constraints of :data:`CONSTRAINTS`.
+        constraints of :data:`~paper_repro.studies.tuning_space.CONSTRAINTS`.
     seed : seed of the sampler (offset by the number of trials already stored, so a resumed
         study does not replay its first draws).
     max_steps : step limit per passage (15,000; 400 with ``quick``).
     base : configuration the tuned parameters are set in (default: printed).
+    study_name : name of the Optuna study in the storage.
+    storage : RDB URL (default ``sqlite:///<out>/tuning.db``).
     out : folder of ``tuning.json`` and the default storage (``figures/tuning``).
     runs_dir : the run cache (default ``results/runs``).
+    """
+
+    trials: int = DEFAULT_TRIALS
+    quick: bool = False
+    space: Mapping | Sequence[str] | None = None
+    objectives: Sequence[str] = DEFAULT_OBJECTIVES
+    scenes: int | None = None
+    seeds: Sequence[int] | None = None
+    sampler: str = "tpe"
+    seed: int = 0
+    max_steps: int | None = None
+    base: Config | None = None
+    study_name: str = STUDY_NAME
+    storage: str | None = None
+    out: str | Path | None = None
+    runs_dir: str | Path | None = None
+
+
+def tune(settings: TuningSettings | None = None, *, workers: int | None = None,
+         scheduler: str | None = None, client=None, log: Callable[[str], None] = print,
+         callbacks: Sequence[Callable] = ()) -> TuningResult:
+    """Run (or resume) the tuning study ``settings`` describe until it holds
+    ``settings.trials`` finished trials.
+
+    Parameters
+    ----------
+    settings : :class:`TuningSettings` (default: the full tuning, 40 trials on 4 scenes).
+    workers, scheduler, client : where the flights run, as
+        :func:`~paper_repro.studies.engine.run_study`; as many trials run at once as there
+        are workers (``workers=0``: one at a time, in this process).
+    log : where progress lines go.
     callbacks : Optuna callbacks ``(study, frozen_trial)``, called after each trial.
 
     Everything is checked (space, objectives, counts, storage URL, sampler) before a scene is
@@ -227,7 +251,14 @@ def tune(trials: int = DEFAULT_TRIALS, quick: bool = False, workers: int | None 
     """
     import optuna
 
-    base = base or Config()
+    st = settings if settings is not None else TuningSettings()
+    if not isinstance(st, TuningSettings):
+        raise ValueError(f"settings must be a TuningSettings, got {type(st).__name__}")
+    trials, quick, storage, study_name = st.trials, st.quick, st.storage, st.study_name
+    space, objectives, scenes, seeds = st.space, st.objectives, st.scenes, st.seeds
+    sampler, seed, max_steps, out, runs_dir = (st.sampler, st.seed, st.max_steps, st.out,
+                                               st.runs_dir)
+    base = st.base or Config()
     spec = check_tune_args(trials, quick, workers, scheduler, storage, space, objectives,
                             scenes, seeds, sampler, max_steps, base)
     out = Path(out) if out is not None else tuning_dir(quick)
