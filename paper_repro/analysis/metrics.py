@@ -149,6 +149,13 @@ All other steps would mostly be cruise in free space, where |Δu| is ~1e-10 N, a
 near a cloud would look like a jump against them."""
 
 
+def scan_changes(result) -> np.ndarray:
+    """(K − 1,) bool, entry k − 1 true when scan k holds a different number of points from
+    scan k − 1: the changes of the LiDAR's visible set (a proxy: a swap at equal count is
+    missed). The one definition every measure and figure of scan changes reads."""
+    return np.diff(np.asarray(result.visible_points)) != 0
+
+
 def scan_change_steps(result, neighbourhood: int | None = SCAN_NEIGHBOURHOOD
                       ) -> tuple[np.ndarray, np.ndarray]:
     """The thrust steps where the LiDAR's visible set changed, and those around them.
@@ -169,7 +176,7 @@ def scan_change_steps(result, neighbourhood: int | None = SCAN_NEIGHBOURHOOD
     """
     u = np.asarray(result.u, float)
     du = np.abs(np.diff(u, axis=0)).max(axis=1)
-    change = np.diff(np.asarray(result.visible_points)) != 0
+    change = scan_changes(result)
     if neighbourhood is None:
         return du[change], du[~change]
     near = np.zeros(len(change), bool)

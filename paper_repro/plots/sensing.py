@@ -16,7 +16,7 @@ def scan_change_times(result) -> np.ndarray:
     before: the changes of the visible set of
     :func:`paper_repro.analysis.metrics.scan_change_steps`.
     """
-    change = np.flatnonzero(np.diff(np.asarray(result.visible_points)) != 0) + 1
+    change = np.flatnonzero(metrics.scan_changes(result)) + 1
     return np.asarray(result.t, float)[change]
 
 

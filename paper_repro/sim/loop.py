@@ -118,15 +118,10 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     plant = plant if plant is not None else plant_for(model, cfg)
     output = _output_map(model)
     truth = _TrueClearance(scene)
-    tracker = None
-    if sim.prediction == "kalman":
-        from paper_repro.world.tracking import RegionTracker
-
-        tracker = RegionTracker(ts)
+    predict = _predictor(sim.prediction, lidar, ts)
     ctl = controller or make_controller(cfg)
     ctl.reset()
-    counts_before = dict(ctl.qp_counts) if hasattr(ctl, "qp_counts") else None
-    steps_before = dict(ctl.step_counts) if hasattr(ctl, "step_counts") else None
+    counters = _SolverCounters(ctl)
     targets = np.atleast_2d(np.asarray(scene.targets, float))
     finish_point, finish_dir = ((np.asarray(v, float) for v in scene.finish) if passage
                                 else (None, None))
@@ -152,12 +147,7 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
         if faults is not None and faults.scan is not None:
             visible = faults.scan(k, visible)
         visible, dropped = _finite_points(visible)
-        if sim.prediction == "static":
-            velocities = None
-        elif sim.prediction == "oracle":
-            velocities = lidar.velocities(t)
-        else:
-            velocities = tracker.update(visible, t)
+        velocities = predict(visible, t)
         if velocities is not None:
             log.region_velocities[k] = velocities  # what the controller is handed
         sol = _solve(ctl, measured, target, visible, plan, errors, velocities, model)
@@ -209,12 +199,37 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     meta["wall_time_s"] = time.perf_counter() - wall
     meta["errors"] = errors
     meta["scene"] = scene.name
-    if counts_before is not None:  # QPs of this run by solver path (rti solver only)
-        meta["qp_counts"] = {k: v - counts_before.get(k, 0) for k, v in ctl.qp_counts.items()}
-    if steps_before is not None:
-        meta["step_counts"] = {k: v - steps_before.get(k, 0) for k, v in ctl.step_counts.items()}
+    meta.update(counters.since())
     return SimulationResult(targets=targets, reached=reached, outcome=outcome, scene=scene,
                             config=cfg, meta=meta, **arrays)
+
+
+def _predictor(prediction: str, lidar: Lidar, ts: float):
+    """``(visible, t) -> velocities``: what the controller is told of the regions' motion,
+    one (p,) m/s per region, or ``None`` for ``"static"`` (the paper): the regions' true
+    velocities (``"oracle"``) or a :class:`~paper_repro.world.tracking.RegionTracker`'s
+    estimates from the scans (``"kalman"``)."""
+    if prediction == "static":
+        return lambda visible, t: None
+    if prediction == "oracle":
+        return lambda visible, t: lidar.velocities(t)
+    from paper_repro.world.tracking import RegionTracker
+
+    return RegionTracker(ts).update
+
+
+class _SolverCounters:
+    """The QPs and steps of one run by solver path (the ``rti`` solver counts them over its
+    life): ``since()`` gives this run's, as ``meta`` entries."""
+
+    def __init__(self, ctl):
+        self.ctl = ctl
+        self.before = {name: dict(getattr(ctl, name)) for name in ("qp_counts", "step_counts")
+                       if hasattr(ctl, name)}
+
+    def since(self) -> dict:
+        return {name: {k: v - before.get(k, 0) for k, v in getattr(self.ctl, name).items()}
+                for name, before in self.before.items()}
 
 
 def _vehicle(config: Config, controller, model: VehicleModel | None) -> VehicleModel:
