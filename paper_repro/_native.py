@@ -19,6 +19,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import warnings
 from pathlib import Path
 
 import casadi as ca
@@ -73,19 +74,81 @@ def build_library(name: str, source: bytes, key_extra: bytes = b"",
                                         capture_output=True, text=True)
                 if result.returncode:
                     raise RuntimeError(f"{cc} failed to build {name}:\n{result.stderr}")
+                _write_digest(out, lib)
                 os.replace(out, lib)
             finally:
                 out.unlink(missing_ok=True)
     return lib
 
 
-def function_library(fn: ca.Function) -> Path:
-    """The shared library of a CasADi function's generated C (built once, cached)."""
+class DamagedLibraryWarning(UserWarning):
+    """A damaged compiled library was moved aside and built again."""
+
+
+def load_library(name: str, source: bytes, key_extra: bytes = b"",
+                 flags: tuple[str, ...] = ()) -> ctypes.CDLL:
+    """:func:`build_library`, then load it. A library is loaded only when it matches the
+    SHA-256 recorded when it was built (``<library>.sha256``); one that does not, or that
+    the loader refuses (truncated, not a shared object), is moved aside to
+    ``<library>.damaged`` with a :class:`DamagedLibraryWarning` and built again. A library of
+    an older cache without a record is recorded once it loads."""
+    lib = build_library(name, source, key_extra, flags)
+    record = lib.with_name(f"{lib.name}.sha256")
+    try:
+        # Never hand the loader an unchecked file: mapping a truncated library can kill the
+        # process (SIGBUS) instead of raising.
+        if record.is_file():
+            if record.read_text().strip() != _sha256(lib):
+                raise OSError("it does not match the SHA-256 recorded when it was built")
+        elif not _whole_elf(lib):
+            raise OSError("it is shorter than its ELF header says (truncated)")
+        loaded = ctypes.CDLL(str(lib))
+    except OSError as exc:
+        aside = lib.with_name(f"{lib.name}.{os.getpid()}.damaged")
+        os.replace(lib, aside)
+        record.unlink(missing_ok=True)
+        warnings.warn(f"damaged compiled library {lib} ({exc}); moved to {aside.name}, "
+                      "building it again", DamagedLibraryWarning, stacklevel=2)
+        return ctypes.CDLL(str(build_library(name, source, key_extra, flags)))
+    if not record.is_file():
+        _write_digest(lib, lib)
+    return loaded
+
+
+def function_source(fn: ca.Function) -> bytes:
+    """The C CasADi generates for ``fn``."""
     with tempfile.TemporaryDirectory() as tmp:
         gen = ca.CodeGenerator(f"{fn.name()}.c", {"with_header": False})
         gen.add(fn)
-        source = Path(gen.generate(str(Path(tmp)) + os.sep)).read_bytes()
-    return build_library(fn.name(), source, key_extra=ca.__version__.encode())
+        return Path(gen.generate(str(Path(tmp)) + os.sep)).read_bytes()
+
+
+def _write_digest(built: Path, lib: Path) -> None:
+    """Record the SHA-256 of ``built`` as ``<lib>.sha256`` (atomically)."""
+    record = lib.with_name(f"{lib.name}.sha256")
+    tmp = record.with_name(f".{record.name}.{os.getpid()}.tmp")
+    tmp.write_text(_sha256(built) + "\n")
+    os.replace(tmp, record)
+
+
+def _whole_elf(path: Path) -> bool:
+    """The file is an ELF object at least as long as its section header table's end (the
+    table is written last, so a truncated library fails this)."""
+    with open(path, "rb") as f:
+        head = f.read(64)
+    if len(head) < 64 or head[:4] != b"\x7fELF":
+        return False
+    if head[4] != 2:  # 32-bit: e_shoff at 0x20 (4 bytes), e_shentsize/e_shnum at 0x2E/0x30
+        shoff = int.from_bytes(head[0x20:0x24], "little")
+        size, count = (int.from_bytes(head[i:i + 2], "little") for i in (0x2E, 0x30))
+    else:
+        shoff = int.from_bytes(head[0x28:0x30], "little")
+        size, count = (int.from_bytes(head[i:i + 2], "little") for i in (0x3A, 0x3C))
+    return Path(path).stat().st_size >= shoff + size * count
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 class NativeFunction:
@@ -102,7 +165,8 @@ class NativeFunction:
             if not fn.sparsity_out(i).is_dense():
                 raise ValueError(f"output {fn.name_out(i)!r} of {fn.name()} must be dense")
         self.name = fn.name()
-        self._lib = ctypes.CDLL(str(function_library(fn)))
+        self._lib = load_library(fn.name(), function_source(fn),
+                                 key_extra=ca.__version__.encode())
         self._fn = getattr(self._lib, self.name)
         self.inputs = [np.zeros(fn.size_in(i), order="F") for i in range(fn.n_in())]
         self.outputs = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]

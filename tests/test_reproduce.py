@@ -225,3 +225,21 @@ def test_a_silent_stage_still_prints_a_line_every_heartbeat(monkeypatch):
     # The progress line reset the clock: no beat within the heartbeat after it.
     after = [t for t, line in stamps if line == "stage: a progress line"][0]
     assert all(t - after >= 0.2 for t, line in stamps if t > after)
+
+
+def test_reproduce_flies_again_a_damaged_cache_entry(tmp_path, fake_simulation):
+    """A truncated result in the cache is named in one line, moved aside and flown again;
+    the run goes on."""
+    kw = dict(quick=True, notebooks=["06_summary"], results_dir=tmp_path / "results",
+              figures_dir=tmp_path / "figures", executed_dir=tmp_path / "executed",
+              progress=False, workers=0)
+    R.reproduce(log=lambda line: None, **kw)
+    spec = R.run_specs(quick=True)[0]
+    npz = spec.directory(tmp_path / "results") / "result.npz"
+    npz.write_bytes(npz.read_bytes()[:100])
+    log = []
+    again = R.reproduce(log=log.append, **kw)
+    damaged = [line for line in log if "damaged cache entry" in line]
+    assert len(damaged) == 1 and "result.npz" in damaged[0]
+    assert again.simulated == [spec.name]
+    assert (npz.parent.parent / f"{npz.parent.name}.damaged").is_dir()

@@ -13,16 +13,22 @@ from paper_repro.sim.loop import Faults, simulate
 from paper_repro.sim.plant import ModelPlant, Plant, plant_for
 from paper_repro.sim.result import (
     FAULT_STATUSES,
+    MANIFEST,
     OUTCOMES,
     RESULT_ARRAYS,
+    DamagedResult,
     SimulationResult,
     run_metadata,
+    verify_result,
+    write_manifest,
 )
 
 __all__ = [
     "check_setup",
+    "DamagedResult",
     "FAULT_STATUSES",
     "Faults",
+    "MANIFEST",
     "ModelPlant",
     "OUTCOMES",
     "Plant",
@@ -33,4 +39,6 @@ __all__ = [
     "SetupHazardWarning",
     "simulate",
     "SimulationResult",
+    "verify_result",
+    "write_manifest",
 ]

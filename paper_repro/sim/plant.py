@@ -27,7 +27,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from paper_repro._native import build_library, compiler
+from paper_repro._native import compiler, load_library
 from paper_repro.config import Config, QuadrotorParams
 from paper_repro.validation import as_vector
 from paper_repro.vehicles.base import VehicleModel, rk4
@@ -122,8 +122,8 @@ def _library(params: QuadrotorParams) -> ctypes.CDLL:
     sizes = (f"#define PLANT_SZ_ARG {f_c.sz_arg()}\n#define PLANT_SZ_RES {f_c.sz_res()}\n"
              f"#define PLANT_SZ_IW {f_c.sz_iw()}\n#define PLANT_SZ_W {f_c.sz_w()}\n")
     loop = resources.files("paper_repro.sim").joinpath("_plant_dp45.c").read_bytes()
-    lib = ctypes.CDLL(str(build_library("plant_dp45", rhs + sizes.encode() + loop,
-                                        key_extra=ca.__version__.encode())))
+    lib = load_library("plant_dp45", rhs + sizes.encode() + loop,
+                       key_extra=ca.__version__.encode())
     lib.plant_dp45.restype = ctypes.c_int
     lib.plant_dp45.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_double,
                                ctypes.c_double, ctypes.c_double, ctypes.c_void_p,

@@ -3,10 +3,14 @@ config and scene and becomes a DataFrame, and the metadata stored with every res
 
 from __future__ import annotations
 
+import hashlib
 import json
+import os
 import platform
 import subprocess
 import sys
+import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -129,8 +133,9 @@ class SimulationResult:
         return pd.DataFrame(data)
 
     def save(self, directory) -> Path:
-        """Write ``result.npz`` (arrays and the scene's clouds) and ``config.json`` (config,
-        scene description and fingerprint, outcome, versions, commit, machine)."""
+        """Write ``result.npz`` (arrays and the scene's clouds), ``config.json`` (config,
+        scene description and fingerprint, outcome, versions, commit, machine) and, last,
+        ``manifest.json`` (the SHA-256 of both: :func:`verify_result` checks them)."""
         out = Path(directory)
         out.mkdir(parents=True, exist_ok=True)
         arrays = {k: getattr(self, k) for k in RESULT_ARRAYS}
@@ -142,23 +147,123 @@ class SimulationResult:
         payload = {"config": self.config.to_dict(), "scene": self.scene.to_dict(),
                    "outcome": self.outcome, "meta": self.meta}
         (out / "config.json").write_text(json.dumps(payload, indent=2, default=str) + "\n")
+        write_manifest(out)
         return out
 
     @classmethod
     def load(cls, directory) -> SimulationResult:
         """Read a result written by :meth:`save`; the scene is rebuilt from its stored clouds
-        (checked against the stored fingerprint), never regenerated."""
+        (checked against the stored fingerprint), never regenerated.
+
+        A damaged or incomplete folder raises :class:`DamagedResult`, naming the folder, the
+        file and what is wrong: missing, truncated or not an archive, not valid JSON, an array
+        missing, or a file that no longer matches ``manifest.json``.
+        """
         d = Path(directory)
+        for name in _FILES:
+            if not (d / name).is_file():
+                raise DamagedResult(d, name, "is missing")
+        payload = _read_config(d)  # what is wrong, said as precisely as it can be
+        n_regions = len(payload["scene"]["regions"])
+        arrays = _read_arrays(d, n_regions)
+        _check_manifest(d)  # and what reads but changed since it was saved
+        clouds = [arrays.pop(f"cloud_{i}") for i in range(n_regions)]
+        try:
+            scene = Scene.from_dict(payload["scene"], clouds)
+            config = Config.from_dict(payload["config"])
+        except (ValueError, KeyError, TypeError) as exc:
+            raise DamagedResult(d, "config.json", f"does not describe its arrays ({exc})") from None
+        return cls(config=config, meta=payload.get("meta", {}), outcome=payload["outcome"],
+                   scene=scene, **arrays)
+
+
+class DamagedResult(ValueError):
+    """A saved result that cannot be read as one. ``folder``, ``file`` and ``what`` say where
+    and what is wrong; the message says all three."""
+
+    def __init__(self, folder, file: str, what: str):
+        self.folder, self.file, self.what = Path(folder), file, what
+        super().__init__(f"{folder}: {file} {what}")
+
+
+MANIFEST = "manifest.json"
+"""The file :meth:`SimulationResult.save` writes last: the SHA-256 of every other file."""
+
+_FILES = ("result.npz", "config.json")
+_REQUIRED = (*RESULT_ARRAYS, "status", "targets", "reached")
+
+
+def write_manifest(directory) -> Path:
+    """Write ``manifest.json`` (atomically) with the SHA-256 of the result's files."""
+    d = Path(directory)
+    data = {"sha256": {name: _sha256(d / name) for name in _FILES}}
+    tmp = d / f".{MANIFEST}.{os.getpid()}.tmp"
+    tmp.write_text(json.dumps(data, indent=1) + "\n")
+    os.replace(tmp, d / MANIFEST)
+    return d / MANIFEST
+
+
+def verify_result(directory) -> None:
+    """Raise :class:`DamagedResult` unless ``directory`` holds an intact result: its files
+    match ``manifest.json``; a folder without one (saved before results had manifests) is
+    read in full, and when it reads its manifest is written, so the next check is a hash."""
+    d = Path(directory)
+    if (d / MANIFEST).is_file():
+        _check_manifest(d)
+        return
+    SimulationResult.load(d)
+    write_manifest(d)
+
+
+def _check_manifest(d: Path) -> None:
+    for name in _FILES:
+        if not (d / name).is_file():
+            raise DamagedResult(d, name, "is missing")
+    if not (d / MANIFEST).is_file():
+        return
+    try:
+        recorded = json.loads((d / MANIFEST).read_text())["sha256"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise DamagedResult(d, MANIFEST, f"is not a manifest ({exc})") from None
+    for name in _FILES:
+        if recorded.get(name) != _sha256(d / name):
+            raise DamagedResult(d, name, "does not match its manifest (SHA-256 differs: "
+                                         "changed or damaged since it was saved)")
+
+
+def _read_config(d: Path) -> dict:
+    try:
         payload = json.loads((d / "config.json").read_text())
-        if "scene" not in payload:
-            raise ValueError(f"{d}: this result was saved before results stored their scene; "
-                             "simulate it again")
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise DamagedResult(d, "config.json", f"is not valid JSON ({exc})") from None
+    if not isinstance(payload, dict) or "scene" not in payload:
+        raise DamagedResult(d, "config.json", "was saved before results stored their scene "
+                                              "(or is not a result's); simulate it again")
+    for key in ("config", "outcome"):
+        if key not in payload:
+            raise DamagedResult(d, "config.json", f"lacks {key!r}")
+    return payload
+
+
+def _read_arrays(d: Path, n_regions: int) -> dict:
+    try:
         with np.load(d / "result.npz") as z:
-            arrays = {k: z[k] for k in z.files if not k.startswith("cloud_")}
-            clouds = [z[f"cloud_{i}"] for i in range(len(payload["scene"]["regions"]))]
-        scene = Scene.from_dict(payload["scene"], clouds)
-        return cls(config=Config.from_dict(payload["config"]), meta=payload.get("meta", {}),
-                   outcome=payload["outcome"], scene=scene, **arrays)
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, EOFError, ValueError, zipfile.BadZipFile, zlib.error) as exc:
+        raise DamagedResult(d, "result.npz", f"is truncated or not a NumPy archive "
+                                             f"({type(exc).__name__}: {exc})") from None
+    for name in (*_REQUIRED, *(f"cloud_{i}" for i in range(n_regions))):
+        if name not in arrays:
+            raise DamagedResult(d, "result.npz", f"lacks the array {name!r}")
+    return arrays
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def run_metadata() -> dict:

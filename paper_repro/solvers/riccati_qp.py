@@ -45,7 +45,7 @@ from importlib import resources
 
 import numpy as np
 
-from paper_repro._native import build_library
+from paper_repro._native import load_library
 
 _D = ctypes.POINTER(ctypes.c_double)
 _ARGS = ("h", "q", "ab", "b", "c", "d", "lb", "ub")  # solve()'s arrays, in order
@@ -69,9 +69,9 @@ def _library(sizes: tuple[int, int] | None = None):
     """The compiled solver; with ``sizes`` = (a, b), its stage kernels are also instantiated
     for nx_j = nx_{j+1} = a, nu_j = b (one library per pair, cached like the others)."""
     flags = () if sizes is None else (f"-DSQP_NX={sizes[0]}", f"-DSQP_NU={sizes[1]}")
-    lib = ctypes.CDLL(str(build_library(
+    lib = load_library(
         "stage_qp", resources.files("paper_repro.solvers").joinpath("_riccati_qp.c").read_bytes(),
-        flags=flags)))
+        flags=flags)
     lib.stage_qp_workspace.restype = ctypes.c_size_t
     lib.stage_qp_workspace.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p,
                                        ctypes.c_int]

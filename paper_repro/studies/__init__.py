@@ -62,7 +62,16 @@ from paper_repro.studies.reproduce import (
     notebook_path,
     run_specs,
 )
-from paper_repro.studies.runs import RunSpec, ensure_result, fly, is_cached, run_key, store
+from paper_repro.studies.runs import (
+    DamagedCacheWarning,
+    RunSpec,
+    ensure_result,
+    fly,
+    is_cached,
+    run_key,
+    store,
+    usable_or_set_aside,
+)
 
 __all__ = [
     "candidate_config",
@@ -70,6 +79,7 @@ __all__ = [
     "check_parameters",
     "controller_key",
     "CSV_ROWS",
+    "DamagedCacheWarning",
     "dask_client",
     "declared_parameters",
     "default_result_dir",
@@ -114,4 +124,5 @@ __all__ = [
     "TIMELINE_QUICK_STEPS",
     "timeline_study",
     "TIMING_COLUMNS",
+    "usable_or_set_aside",
 ]

@@ -51,10 +51,11 @@ CSV_ROWS = 5_000
 """Tables up to this many rows are also written as CSV (readable in a diff)."""
 
 TIMING_COLUMNS = (*metrics.TIMING_COLUMNS, "task_time_s", "worker", "simulated", "result_dir",
-                  "controller_builds")
+                  "controller_builds", "cache_damaged")
 """Columns that depend on the machine, the load or the cache, not on the flight
 (``controller_builds``: controllers the run's worker process had built when it finished the
-run; a worker builds one per configuration)."""
+run, a worker builds one per configuration; ``cache_damaged``: the run's cache entry was
+damaged, moved aside and the run flown again, which the study's log names)."""
 
 
 @dataclass
@@ -118,6 +119,9 @@ def run_study(study: Study, out=None, workers: int | None = None, scheduler: str
 
     def done(i: int, row: dict) -> None:
         rows[i] = row
+        note = row.pop("damage_note", "")
+        if note:
+            log(f"study {study.name}: {note}")
         bar.update(row)
         if on_row is not None:
             on_row(i, row)
@@ -153,7 +157,10 @@ def run_task(spec: RunSpec, runs_dir: str, force: bool = False) -> dict:
     row = {"name": spec.name, "key": spec.key[:12], **dict(spec.labels)}
     try:
         controller = _controller(controller_key(spec.config))
-        directory, simulated = ensure_result(spec, runs_dir, force=force, controller=controller)
+        damage = []
+        directory, simulated = ensure_result(spec, runs_dir, force=force, controller=controller,
+                                             warn=damage.append)
+        row["cache_damaged"], row["damage_note"] = bool(damage), "; ".join(damage)
         row.update(summary_row(SimulationResult.load(directory)))
         row.update(status="ok", error="", simulated=simulated, result_dir=str(directory))
     except Exception as exc:  # a failed run is a row, never a lost study

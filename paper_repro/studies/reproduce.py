@@ -35,7 +35,7 @@ import numpy as np
 from paper_repro import paths
 from paper_repro.config import Config
 from paper_repro.progress import PrefixedLines, duration, heartbeat, print_now
-from paper_repro.studies.runs import RunSpec, ensure_result, is_cached
+from paper_repro.studies.runs import RunSpec, ensure_result, usable_or_set_aside
 
 DESCRIPTION = """\
 Regenerate every figure of the paper and the summary table.
@@ -290,7 +290,7 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
         out = spec.directory(results_dir)
         step = f"[{i}/{total}] simulate {spec.name}"
         result_dirs[spec.config.distance.metric] = out
-        if is_cached(out) and not force:
+        if not force and usable_or_set_aside(out, log):
             log(f"{step}: cached in {_show(out)}")
         else:
             log(f"{step}: flying up to {spec.max_steps} steps ...")

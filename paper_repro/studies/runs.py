@@ -95,14 +95,59 @@ def run_key(config: Config, max_steps: int, scene_fingerprint: str) -> str:
 
 
 def is_cached(directory) -> bool:
-    """A complete saved result lives in ``directory``."""
+    """A complete, intact saved result lives in ``directory`` (its files match its manifest,
+    see :func:`~paper_repro.sim.result.verify_result`)."""
+    from paper_repro.sim.result import DamagedResult, verify_result
+
     d = Path(directory)
-    return (d / "result.npz").is_file() and (d / "config.json").is_file()
+    if not ((d / "result.npz").is_file() and (d / "config.json").is_file()):
+        return False
+    try:
+        verify_result(d)
+    except DamagedResult:
+        return False
+    return True
+
+
+class DamagedCacheWarning(UserWarning):
+    """A damaged cache entry was moved aside and its run flown again."""
+
+
+def usable_or_set_aside(directory, warn=None) -> bool:
+    """True when ``directory`` holds an intact result. A folder there that is not one
+    (truncated, not valid JSON, an array missing, changed since saved) is moved aside to
+    ``<folder>.damaged`` (never deleted), ``warn`` gets one line naming it and what is wrong
+    (default: a :class:`DamagedCacheWarning`), and the answer is False: fly the run again."""
+    from paper_repro.sim.result import DamagedResult, verify_result
+
+    d = Path(directory)
+    if not d.exists():
+        return False
+    try:
+        verify_result(d)
+        return True
+    except DamagedResult as exc:
+        aside = d.with_name(f"{d.name}.damaged")
+        n = 1
+        while aside.exists():
+            n += 1
+            aside = d.with_name(f"{d.name}.damaged-{n}")
+        os.replace(d, aside)
+        line = f"damaged cache entry: {exc}; moved to {aside.name}, flying the run again"
+        if warn is None:
+            import warnings
+
+            warnings.warn(line, DamagedCacheWarning, stacklevel=3)
+        else:
+            warn(line)
+        return False
 
 
 def ensure_result(spec: RunSpec, results_dir=None, force: bool = False,
-                  progress: bool | None = None, controller=None) -> tuple[Path, bool]:
-    """The cache folder of ``spec``, flying the run first if it is missing (or ``force``).
+                  progress: bool | None = None, controller=None,
+                  warn=None) -> tuple[Path, bool]:
+    """The cache folder of ``spec``, flying the run first if it is missing, damaged (moved
+    aside with one warning line, :func:`usable_or_set_aside`) or ``force``d.
 
     Parameters
     ----------
@@ -111,11 +156,12 @@ def ensure_result(spec: RunSpec, results_dir=None, force: bool = False,
     force : fly again even when a complete result exists.
     progress : closed-loop progress bar (default: when writing to a terminal).
     controller : a built controller for ``spec.config`` to reuse (it is reset before flying).
+    warn : where the line about a damaged entry goes (default: a warning).
 
     Returns (folder, simulated).
     """
     out = spec.directory(results_dir)
-    if is_cached(out) and not force and _holds_what_it_needs(out, spec):
+    if not force and usable_or_set_aside(out, warn) and _holds_what_it_needs(out, spec):
         return out, False
     store(fly(spec, controller=controller, progress=progress), out)
     return out, True

@@ -1,0 +1,137 @@
+"""A damaged cache entry never crashes a run or passes for a result: it is named, moved
+aside and flown again, and what is flown again is the run a fresh cache gives."""
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from paper_repro import Config, NMPCParams, SimulationParams
+from paper_repro._native import DamagedLibraryWarning, cache_dir, load_library
+from paper_repro.sim.result import MANIFEST, DamagedResult, SimulationResult, verify_result
+from paper_repro.studies import Study, run_study
+from paper_repro.studies.runs import DamagedCacheWarning, RunSpec, ensure_result, is_cached
+
+CONFIG = Config(nmpc=NMPCParams(region_slots=1, points_per_region=32),
+                simulation=SimulationParams(scenario="encounter"))
+SPEC = RunSpec("damage", CONFIG, 40)
+
+
+def _truncate(path):
+    path.write_bytes(path.read_bytes()[: len(path.read_bytes()) // 2])
+
+
+def _bad_json(path):
+    path.write_text(path.read_text()[:-20])
+
+
+def _drop_array(directory):
+    with np.load(directory / "result.npz") as z:
+        arrays = {k: z[k] for k in z.files if k != "clearance"}
+    np.savez_compressed(directory / "result.npz", **arrays)
+
+
+def _edit_config(path):
+    data = json.loads(path.read_text())
+    data["outcome"] = "completed" if data["outcome"] != "completed" else "stalled"
+    path.write_text(json.dumps(data))
+
+
+DAMAGE = {
+    "truncated result.npz": ("result.npz", lambda d: _truncate(d / "result.npz"),
+                             "truncated or not a NumPy archive"),
+    "config.json not JSON": ("config.json", lambda d: _bad_json(d / "config.json"),
+                             "not valid JSON"),
+    "an array missing": ("result.npz", _drop_array, "lacks the array 'clearance'"),
+    "manifest mismatch": ("config.json", lambda d: _edit_config(d / "config.json"),
+                          "does not match its manifest"),
+}
+
+
+@pytest.fixture(scope="module")
+def fresh(tmp_path_factory):
+    """The run flown into an empty cache: what every recovery must give back."""
+    root = tmp_path_factory.mktemp("fresh")
+    directory, simulated = ensure_result(SPEC, root, progress=False)
+    assert simulated and is_cached(directory)
+    return SimulationResult.load(directory)
+
+
+def _damaged_copy(fresh, tmp_path, damage):
+    directory = SPEC.directory(tmp_path)
+    fresh.save(directory)
+    damage(directory)
+    return directory
+
+
+@pytest.mark.parametrize("kind", sorted(DAMAGE))
+def test_a_damaged_result_is_named_and_flown_again(kind, fresh, tmp_path):
+    file, damage, what = DAMAGE[kind]
+    directory = _damaged_copy(fresh, tmp_path, damage)
+    with pytest.raises(DamagedResult, match=what) as info:
+        SimulationResult.load(directory)
+    assert info.value.folder == directory and info.value.file == file
+    assert str(directory) in str(info.value) and file in str(info.value)
+    assert not is_cached(directory)
+    with pytest.warns(DamagedCacheWarning, match=f"{directory.name}.*{file}"):
+        again, simulated = ensure_result(SPEC, tmp_path, progress=False)
+    assert simulated and again == directory and is_cached(again)
+    assert (tmp_path / f"{directory.name}.damaged").is_dir()  # moved aside, never deleted
+    flown = SimulationResult.load(again)
+    for name in ("x", "u", "clearance", "iterations", "success"):
+        np.testing.assert_array_equal(getattr(flown, name), getattr(fresh, name))
+
+
+def test_an_array_missing_without_a_manifest_is_named(fresh, tmp_path):
+    """A folder saved before manifests existed is read in full: a missing array is named."""
+    directory = _damaged_copy(fresh, tmp_path, _drop_array)
+    (directory / MANIFEST).unlink()
+    with pytest.raises(DamagedResult, match="lacks the array 'clearance'"):
+        verify_result(directory)
+
+
+def test_an_old_intact_folder_gets_its_manifest(fresh, tmp_path):
+    directory = _damaged_copy(fresh, tmp_path, lambda d: (d / MANIFEST).unlink())
+    assert is_cached(directory) and (directory / MANIFEST).is_file()
+
+
+def test_a_study_records_the_damaged_entry_and_still_completes(fresh, tmp_path):
+    runs = tmp_path / "runs"
+    directory = _damaged_copy(fresh, runs, lambda d: _truncate(d / "result.npz"))
+    lines = []
+    res = run_study(Study("damage", (SPEC,)), out=tmp_path / "study", workers=0,
+                    runs_dir=runs, progress=False, log=lines.append)
+    row = res.table.iloc[0]
+    assert row["status"] == "ok" and row["simulated"] and row["cache_damaged"]
+    assert "damage_note" not in res.table
+    named = [line for line in lines if "damaged cache entry" in line]
+    assert len(named) == 1 and directory.name in named[0] and "result.npz" in named[0]
+
+
+@pytest.mark.parametrize("record", [True, False], ids=["recorded", "older cache"])
+def test_a_truncated_compiled_library_is_built_again(record, tmp_path, monkeypatch):
+    """Truncated on disk before it is loaded (a library in use is never rewritten): it is
+    refused (its SHA-256 differs from the record, or without a record the loader refuses it),
+    moved aside and built again, and the rebuilt one computes."""
+    import ctypes
+
+    from paper_repro._native import build_library
+
+    monkeypatch.setenv("PAPER_REPRO_CACHE", str(tmp_path))
+    source = f"double twice_{int(record)}(double x) {{ return 2 * x; }}\n".encode()
+    path = build_library(f"twice_{int(record)}", source)
+    if not record:
+        path.with_name(f"{path.name}.sha256").unlink()
+    data = path.read_bytes()
+    path.unlink()
+    path.write_bytes(data[: len(data) // 3])
+    with pytest.warns(DamagedLibraryWarning, match=path.name):
+        lib = load_library(f"twice_{int(record)}", source)
+    fn = getattr(lib, f"twice_{int(record)}")
+    fn.restype, fn.argtypes = ctypes.c_double, [ctypes.c_double]
+    assert fn(1.5) == 3.0
+    assert any(p.name.endswith(".damaged") for p in cache_dir().iterdir())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # intact now: loaded without a word
+        load_library(f"twice_{int(record)}", source)
