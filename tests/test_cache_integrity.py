@@ -135,3 +135,19 @@ def test_a_truncated_compiled_library_is_built_again(record, tmp_path, monkeypat
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # intact now: loaded without a word
         load_library(f"twice_{int(record)}", source)
+
+
+def test_a_damaged_tuning_storage_is_moved_aside_and_the_study_starts_anew(tmp_path):
+    from paper_repro.studies import tuning as T
+    from paper_repro.studies.tuning_space import finished_trials
+
+    out = tmp_path / "tuning"
+    out.mkdir()
+    (out / "tuning.db").write_bytes(b"not a database " * 100)
+    lines = []
+    settings = T.TuningSettings(1, quick=True, space={"sigma": (0.5, 2.0)}, seeds=(0,),
+                                max_steps=30, base=CONFIG, out=out, runs_dir=tmp_path / "runs")
+    res = T.tune(settings, workers=0, log=lines.append)
+    assert (out / "tuning.db.damaged").read_bytes().startswith(b"not a database")
+    assert sum("damaged storage" in line and "tuning.db" in line for line in lines) == 1
+    assert len(finished_trials(res.study)) == 1

@@ -44,6 +44,7 @@ import contextlib
 import dataclasses
 import json
 import math
+import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -271,7 +272,7 @@ def tune(settings: TuningSettings | None = None, *, workers: int | None = None,
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     directions = ["minimize"] * len(objectives)
-    existing = _load_existing(study_name, storage)
+    existing = _load_existing(study_name, storage, log)
     with tuning_client(workers, scheduler, client, log) as cluster_client:
         if existing is None:
             train = tuple(seeds) if seeds is not None else training_scenes(
@@ -482,12 +483,25 @@ def _check_stored(study, stored: dict) -> None:
                              "--storage or study name")
 
 
-def _load_existing(name: str, storage: str):
+def _load_existing(name: str, storage: str, log=print):
+    """The stored study, or ``None``. A SQLite file that is not a database (truncated,
+    overwritten) is moved to ``<file>.damaged`` with one line naming it, and the study starts
+    anew; its flights come back from the run cache."""
     import optuna
+    import sqlalchemy.exc
 
     try:
         return optuna.load_study(study_name=name, storage=storage)
     except KeyError:  # no such study in the storage yet
+        return None
+    except sqlalchemy.exc.DatabaseError as exc:
+        path = Path(storage.removeprefix("sqlite:///"))
+        if not (storage.startswith("sqlite:///") and path.is_file()):
+            raise
+        aside = path.with_name(f"{path.name}.damaged")
+        os.replace(path, aside)
+        log(f"tune: damaged storage {path} ({type(exc.orig).__name__}: {exc.orig}); moved to "
+            f"{aside.name}, starting the study anew")
         return None
 
 
