@@ -307,8 +307,7 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
             simulated.append(spec.name)
             log(f"{step}: done in {duration(seconds)} -> {_show(out)}")
 
-    outputs, ran = [], []
-    for i, nb in enumerate(selected, len(todo) + 1):
+    def run_notebook(i: int, nb: NotebookSpec) -> float:
         params = notebook_parameters(nb, result_dirs, figures, quick=quick)
         if overrides:
             declared = declared_parameters(notebook_path(nb.name))
@@ -318,13 +317,23 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
         t0 = time.perf_counter()
         with heartbeat(PrefixedLines(log, f"{step}: "), "executing"):
             execute_notebook(notebook_path(nb.name), executed / f"{nb.name}.ipynb", params)
-        timings[nb.name] = time.perf_counter() - t0
+        seconds = time.perf_counter() - t0
         missing = [f for f in nb.outputs if not (figures / f).is_file()]
         if missing:
             raise RuntimeError(f"notebook {nb.name} did not write {missing} into {figures}")
-        outputs += [figures / f for f in nb.outputs]
-        ran.append(nb.name)
-        log(f"{step}: done in {duration(timings[nb.name])}")
+        log(f"{step}: done in {duration(seconds)}")
+        return seconds
+
+    # The notebooks only read the cache and write their own files: as many at once as the
+    # missions had processes (each kernel is a process of its own).
+    outputs, ran = [], []
+    with _threads(len(selected), workers) as pool:
+        futures = [(nb, pool.submit(run_notebook, i, nb))
+                   for i, nb in enumerate(selected, len(todo) + 1)]
+        for nb, future in futures:
+            timings[nb.name] = future.result()
+            outputs += [figures / f for f in nb.outputs]
+            ran.append(nb.name)
 
     for metric, directory in result_dirs.items():
         with np.load(Path(directory) / "result.npz") as z:
@@ -365,6 +374,16 @@ def _fly(spec: RunSpec, results_dir, progress) -> tuple[Path, float]:
     with heartbeat(lines, "building the controller, or between progress lines"):
         out, _ = ensure_result(spec, results_dir, force=True, progress=lines)
     return out, time.perf_counter() - t0
+
+
+def _threads(jobs: int, workers: int | None):
+    """Threads for ``jobs`` notebooks: ``workers`` (default one per core), or with
+    ``workers=0`` none: one after the other in this thread."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    if workers == 0:
+        return _pool(jobs, 0)
+    return ThreadPoolExecutor(max(1, min(jobs, workers or os.cpu_count() or 1)))
 
 
 def _pool(flights: int, workers: int | None):
