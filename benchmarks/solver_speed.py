@@ -9,6 +9,10 @@ HPIPM), then prints, per solver: median / p95 / p99 / max wall time of one contr
 ms (Python overhead included: packing the scan, building the QP, solving), the median iteration
 count, the failed solves, the QPs that went to HPIPM, the minimum clearance, and the largest
 position deviation from the reference trajectory. The last line is the same table as JSON.
+
+With ``--save`` the table is also written to ``figures/solver_speed/<scenario>/``: what the
+flights determine in ``speed.csv`` (byte-stable), the times in ``speed_timings.csv`` (this
+machine's), then the stamp; the README's speed tables are formatted from them.
 """
 
 from __future__ import annotations
@@ -16,18 +20,23 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import platform
+import sys
 import time
 
 import numpy as np
+import pandas as pd
 from _table import print_table  # benchmarks/_table.py (the script's folder)
 
 from paper_repro import Config
+from paper_repro.evidence.golden import stamp
+from paper_repro.paths import figures_dir
 from paper_repro.sim.loop import simulate
 from paper_repro.solvers.factory import make_controller
 
 VARIANTS = {  # name -> (solver, controller options)
     "reference": ("reference", {}),
     "rti": ("rti", {"max_iter": 1}),
+    "rti-damped": ("rti", {"max_iter": 1, "line_search": True}),
     "rti-hpipm": ("rti", {"max_iter": 1, "qp_solver": "hpipm"}),
     "sqp-2": ("rti", {"max_iter": 2}),
     "sqp-converged": ("rti", {"max_iter": 30, "step_tol": 1e-9}),
@@ -45,6 +54,8 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--metric", default="smooth", choices=("smooth", "euclidean"))
     parser.add_argument("--solvers", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
+    parser.add_argument("--save", action="store_true",
+                        help="write the table to figures/solver_speed/<scenario>/ (committed)")
     args = parser.parse_args()
 
     base = Config()
@@ -73,7 +84,7 @@ def main() -> None:
         if ref is not None:
             k = min(len(ref.x), len(r.x))
             dev = float(np.max(np.linalg.norm(r.x[:k, :3] - ref.x[:k, :3], axis=1)))
-        rows.append({"solver": name, "median_ms": float(np.median(ms)),
+        rows.append({"solver": name, "steps": r.steps, "median_ms": float(np.median(ms)),
                      "p95_ms": float(np.percentile(ms, 95)),
                      "p99_ms": float(np.percentile(ms, 99)), "max_ms": float(ms.max()),
                      "iterations_median": float(np.median(r.iterations)),
@@ -92,6 +103,23 @@ def main() -> None:
                        ("shortened", "short steps", "d"),
                        ("max_dev_m", "max dev m", ".2e"),
                        ("min_clearance_m", "min clear m", ".3f")], width=14)
+    if args.save:
+        _save(rows, args.scenario)
+
+
+TIMINGS = ("median_ms", "p95_ms", "p99_ms", "max_ms")
+
+
+def _save(rows: list[dict], scenario: str) -> None:
+    """The flight columns (byte-stable) and the timings, apart; then the stamp."""
+    out = figures_dir() / "solver_speed" / scenario
+    out.mkdir(parents=True, exist_ok=True)
+    table = pd.DataFrame(rows)
+    table.drop(columns=list(TIMINGS)).to_csv(out / "speed.csv", index=False,
+                                             float_format="%.6g")
+    table[["solver", *TIMINGS]].to_csv(out / "speed_timings.csv", index=False,
+                                       float_format="%.4g")
+    stamp(out, " ".join(["python", "benchmarks/solver_speed.py", *sys.argv[1:]]))
 
 
 def _cpu_name() -> str:

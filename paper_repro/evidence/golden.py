@@ -214,6 +214,7 @@ EVIDENCE_SETS = (
     "studies/timeline",  # study timeline
     "fidelity",  # benchmarks/fidelity.py
     "ground_robot",  # benchmarks/ground_robot.py
+    "solver_speed/encounter", "solver_speed/crossing",  # benchmarks/solver_speed.py --save
     "studies/monte_carlo", "studies/eta_sweep", "studies/sensor_noise",
     "studies/sensing_window", "studies/moving_obstacles", "studies/moving_obstacles_definition",
     "tuning",  # tune

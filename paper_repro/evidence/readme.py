@@ -65,6 +65,25 @@ def ground_robot() -> str:
                            "outcome", "steps", "TV of (v, ω) per s"], rows)
 
 
+def solver_speed(scenario: str) -> str:
+    """``figures/solver_speed/<scenario>/speed.csv`` with its timings beside it."""
+    folder = paths.figures_dir() / "solver_speed" / scenario
+    table = pd.read_csv(folder / "speed.csv").merge(
+        pd.read_csv(folder / "speed_timings.csv"), on="solver")
+    names = {"reference": "reference (IPOPT)", "rti": "rti (the default: 1 SQP step, Riccati QP)",
+             "rti-damped": "rti-damped (line search and damping)",
+             "rti-hpipm": "rti-hpipm (HPIPM for every QP)", "sqp-2": "sqp-2",
+             "sqp-converged": "sqp-converged"}
+    rows = [[names.get(r.solver, r.solver), _ms(r.median_ms), _ms(r.p95_ms), _ms(r.p99_ms),
+             _ms(r.max_ms), f"{r.iterations_median:.0f}", f"{r.failures:,}",
+             "–" if r.solver == "reference" else f"{r.hpipm_qps:,} of {r.steps:,}",
+             f"{r.shortened:,}", _metres(r.max_dev_m) if r.solver != "reference" else "0",
+             f"{r.min_clearance_m:.3f} m"] for r in table.itertuples()]
+    return markdown_table(["solver", "median ms", "p95 ms", "p99 ms", "max ms", "iterations",
+                           "failures", "QPs sent to HPIPM", "shortened steps",
+                           "max deviation from IPOPT", "min clearance"], rows)
+
+
 def monte_carlo() -> str:
     """Rates and paired effects of ``figures/studies/monte_carlo/mc_summary.csv``."""
     table = pd.read_csv(paths.figures_dir() / "studies" / "monte_carlo" / "mc_summary.csv")
@@ -219,13 +238,16 @@ def regeneration() -> str:
     return markdown_table(["evidence set", "made by", "wall time (2 cores, last run)"], rows)
 
 
-MACHINE_BLOCKS = frozenset({"regeneration", "ground_robot"})
+MACHINE_BLOCKS = frozenset({"regeneration", "ground_robot", "solver_speed_encounter",
+                            "solver_speed_crossing"})
 """Blocks quoting what the machine measured: rendered like the others, never asserted (they
 change with every regeneration)."""
 
 BLOCKS: dict[str, Callable[[], str]] = {
     "regeneration": regeneration,
     "summary": summary, "fidelity": fidelity, "ground_robot": ground_robot,
+    "solver_speed_encounter": lambda: solver_speed("encounter"),
+    "solver_speed_crossing": lambda: solver_speed("crossing"),
     "monte_carlo": monte_carlo,
     "eta_sweep": eta_sweep, "sensor_noise": sensor_noise, "sensing_window": sensing_window,
     "moving_obstacles": moving_obstacles, "timeline": timeline, "tuning": tuning}
