@@ -11,6 +11,10 @@
 ``moving``         moving obstacles and their prediction
 ``tuning``         the tuning's front, importances and held-out comparison
 =================  ==================================================================
+
+The paper's figures (Section V): Fig. 1 :func:`plot_flight_3d`; Figs. 2, 3
+:func:`plot_projection` (``plane="xz"`` / ``"xy"``); Figs. 4, 8 :func:`plot_thrusts`;
+Figs. 5, 7 :func:`plot_tracking_errors`; Fig. 6 :func:`plot_states`.
 """
 
 from paper_repro.plots.animation import animate_flight, save_animation

@@ -1,24 +1,5 @@
-"""One function per figure of the paper (Section V), the tutorial figures, and the animation.
-
-=======================  ====================================================================
-Fig. 1                   :func:`plot_flight_3d` — trajectory, clouds, LiDAR spheres, targets
-Figs. 2, 3               :func:`plot_projection` with ``plane="xz"`` / ``"xy"``
-Figs. 4, 8               :func:`plot_thrusts` — f1..f4 and the artificial input u_a
-Figs. 5, 7               :func:`plot_tracking_errors` — e_x, e_y, e_z, e = y − y_t (signed)
-Fig. 6                   :func:`plot_states` — x, y, z with the artificial state y_a
-summary                  :func:`plot_solve_times`, :func:`plot_input_spectrum`
-the clock (issue 12)     :func:`plot_clock_levers`, :func:`plot_flight_clocks`
-tutorial (eq. 8–13)      :func:`plot_distance_slice`, :func:`plot_eta_sigma`,
-                         :func:`plot_gradient_field`, :func:`plot_half_squared_limit`
-studies                  :func:`plot_rates`, :func:`plot_paired`, :func:`plot_paired_by`,
-                         :func:`plot_clearance_ecdf`, :func:`plot_study_solve_times`,
-                         :func:`plot_sweep`
-sensing window           :func:`plot_sensing_window`, :func:`plot_scan_change_thrusts`,
-                         :func:`plot_scan_change_du`, :func:`plot_scan_change_study`
-moving obstacles         :func:`prediction_velocities`, :func:`plot_clearance_time`,
-                         :func:`plot_crossing_closest`, :func:`plot_prediction_study`
-video                    :func:`animate_flight`, :func:`animate_crossing` (GIF)
-=======================  ====================================================================
+"""What every figure shares: colours, decimation of long runs, axes helpers, and
+:func:`save_figure`.
 
 Each function takes a :class:`~paper_repro.sim.result.SimulationResult` (and the
 :class:`~paper_repro.world.scene.Scene` it flew in, ``result.scene``) and returns the matplotlib

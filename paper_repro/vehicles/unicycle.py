@@ -8,9 +8,9 @@ a = (p_x, p_y, θ), (v, ω) = 0: the rows x_a = f(x_a, u_a) would say v cos θ =
 dependent equations that IPOPT fails on. Everything else, problem (21), the smoothed
 distance, the CBF penalty and both solvers, is the quadrotor's code, unchanged.
 
-The scene (:func:`planar_scene`) is a nonconvex point cloud, an L-shaped wall whose corner
-faces the robot, seen through a 2-D LiDAR (:func:`planar_scan`). :func:`fly` is the closed
-loop, short enough to read: scan, solve, apply u_0, integrate.
+The scene (:func:`~paper_repro.world.planar.planar_scene`) is a nonconvex point cloud, an
+L-shaped wall whose corner faces the robot, seen through a 2-D LiDAR; the quadrotor's closed
+loop, :func:`~paper_repro.sim.loop.simulate`, flies it: scan, solve, apply u_0, integrate.
 """
 
 from __future__ import annotations
