@@ -75,6 +75,21 @@ def test_the_fast_path_agrees_with_the_reference(flights):
     assert np.linalg.norm(rti.x[:, :3] - ref.x[:, :3], axis=1).max() < 0.005
 
 
+def test_without_a_controller_simulate_builds_one_for_the_vehicle(flights):
+    """``simulate(config, model=...)`` builds the model's controller, not the quadrotor's,
+    and flies what the explicit controller flew."""
+    run = simulate(CONFIG, model=point_mass(), max_steps=20, progress=False, scene=SCENE)
+    np.testing.assert_array_equal(run.x, flights["rti"].x[:21])
+
+
+def test_a_model_that_is_not_the_controllers_is_refused():
+    from paper_repro.vehicles.unicycle import unicycle_model
+
+    controller = make_controller(CONFIG, point_mass())
+    with pytest.raises(ValueError, match="model 'unicycle' .* is not the controller's"):
+        simulate(CONFIG, controller, model=unicycle_model(), scene=SCENE, max_steps=1)
+
+
 def test_its_plant_is_its_own_dynamics():
     """Without a plant of its own, the loop integrates the model's f_c: from rest under a
     constant a, p moves ½·a·T_s²."""

@@ -119,7 +119,7 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     output = _output_map(model)
     truth = _TrueClearance(scene)
     predict = _predictor(sim.prediction, lidar, ts)
-    ctl = controller or make_controller(cfg)
+    ctl = controller or make_controller(cfg, model)
     ctl.reset()
     counters = _SolverCounters(ctl)
     targets = np.atleast_2d(np.asarray(scene.targets, float))
@@ -233,12 +233,18 @@ class _SolverCounters:
 
 
 def _vehicle(config: Config, controller, model: VehicleModel | None) -> VehicleModel:
-    """The vehicle flown: ``model``, else the controller's, else the quadrotor of ``config``."""
+    """The vehicle flown: ``model``, else the controller's, else the quadrotor of ``config``;
+    a ``model`` that is not the controller's vehicle is refused."""
+    ocp = getattr(controller, "ocp", None)
     if model is None:
-        ocp = getattr(controller, "ocp", None)
         model = ocp.model if ocp is not None else quadrotor_model(config)
     if not isinstance(model, VehicleModel):
         raise ValueError(f"model must be a VehicleModel, got {type(model).__name__}")
+    if ocp is not None and (ocp.model.name, ocp.nx, ocp.nu, ocp.ny) != (
+            model.name, model.nx, model.nu, model.ny):
+        raise ValueError(f"model {model.name!r} (n_x = {model.nx}, n_u = {model.nu}) is not "
+                         f"the controller's vehicle {ocp.model.name!r} (n_x = {ocp.nx}, "
+                         f"n_u = {ocp.nu})")
     return model
 
 
