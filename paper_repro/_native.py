@@ -105,7 +105,10 @@ def load_library(name: str, source: bytes, key_extra: bytes = b"",
         loaded = ctypes.CDLL(str(lib))
     except OSError as exc:
         aside = lib.with_name(f"{lib.name}.{os.getpid()}.damaged")
-        os.replace(lib, aside)
+        try:
+            os.replace(lib, aside)
+        except FileNotFoundError:  # another process set it aside first
+            pass
         record.unlink(missing_ok=True)
         warnings.warn(f"damaged compiled library {lib} ({exc}); moved to {aside.name}, "
                       "building it again", DamagedLibraryWarning, stacklevel=2)

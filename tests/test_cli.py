@@ -38,9 +38,19 @@ def test_bad_run_options_are_refused_before_flying(option, value, name, tmp_path
     assert err.startswith("error:") and name in err and len(err.strip().splitlines()) == 1
 
 
-def test_run_knows_every_scenario_of_make_scene():
-    parser_choices = {a.dest: a.choices for a in _subparser("run")._actions}
-    assert tuple(parser_choices["scenario"]) == SCENARIOS
+def test_run_offers_exactly_the_scenes_make_scene_builds():
+    """Every choice of ``run --scenario`` builds, and a name outside them is refused by the
+    library too, naming the parameter: the command line cannot lag the library."""
+    from paper_repro.world.scenarios import make_scene
+
+    choices = {a.dest: a.choices for a in _subparser("run")._actions}["scenario"]
+    assert set(choices) >= {"paper", "encounter", "random", "crossing", "oncoming",
+                            "random-crossing"}
+    for name in choices:
+        assert make_scene(name, 1).regions
+    with pytest.raises(ValueError, match="scenario must be one of"):
+        make_scene("moon")
+    assert tuple(choices) == SCENARIOS
 
 
 def test_the_help_lists_every_command():

@@ -132,7 +132,10 @@ def usable_or_set_aside(directory, warn=None) -> bool:
         while aside.exists():
             n += 1
             aside = d.with_name(f"{d.name}.damaged-{n}")
-        os.replace(d, aside)
+        try:
+            os.replace(d, aside)
+        except FileNotFoundError:  # another process set it aside first
+            return False
         line = f"damaged cache entry: {exc}; moved to {aside.name}, flying the run again"
         if warn is None:
             import warnings
