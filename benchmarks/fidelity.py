@@ -13,7 +13,8 @@ as a failed solve and applies the previous plan, shifted; ``reference-iterate`` 
 iterate it stopped at. Per (window, solver) it prints the chattering measures after the
 first :data:`SETTLE_STEPS` (total variation of u per second, share of thrust power above
 5 Hz, sign changes of Δu, max |Δu|, steps with |Δu| > 1 N), the minimum clearance, the
-largest position deviation from the IPOPT loop's trajectory, IPOPT's unconverged solves and
+largest position deviation from the IPOPT loop's trajectory, the instants at which IPOPT or the
+iterated SQP stopped at its iteration limit (:func:`at_limit`) and
 the median / p99 solve time, then the ratios to the IPOPT loop that applies what IPOPT
 returns. Every flight is saved in ``results/fidelity/<window>/<solver>/``
 and re-used; the flight columns go to ``figures/fidelity/fidelity.csv`` (byte-stable), the
@@ -146,6 +147,18 @@ starts from the hover guess, and a real-time iteration needs a few instants to r
 converged plan that IPOPT finds at once; that transient is the window's, not the solver's."""
 
 
+def at_limit(solver: str, status: np.ndarray) -> float:
+    """Instants at which the solver stopped at its iteration limit without meeting its own
+    convergence test: IPOPT's ``Maximum_Iterations_Exceeded``, or an SQP of several
+    iterations whose last step was still above ``step_tol`` (``"iterated"``). NaN for the
+    one-step real-time iterations, which stop after one step by design."""
+    if SOLVERS[solver][0] == "reference":
+        return float(np.sum(status == "Maximum_Iterations_Exceeded"))
+    if SOLVERS[solver][1].get("max_iter", 1) > 1:
+        return float(np.sum(status == "iterated"))
+    return np.nan
+
+
 def row(window: str, solver: str, reference: SimulationResult | None) -> dict:
     r = SimulationResult.load(OUT / window / solver)
     u = r.u[SETTLE_STEPS:]
@@ -162,7 +175,7 @@ def row(window: str, solver: str, reference: SimulationResult | None) -> dict:
             "sign_changes": c["du_sign_changes"], "max_du": c["max_abs_du"],
             "jumps_1N": int(np.sum(du > 1.0)), "min_clearance_m": float(r.clearance.min()),
             "deviation_m": deviation, "failed": r.failures,
-            "iteration_limit": int(np.sum(r.status == "Maximum_Iterations_Exceeded")),
+            "iteration_limit": at_limit(solver, r.status),
             "median_ms": float(np.median(st)), "p99_ms": float(np.percentile(st, 99)),
             "max_ms": float(st.max())}
 
@@ -202,7 +215,7 @@ def main() -> None:
         ("hf_share_ratio", ">5Hz/ref", ".3g"),
         ("sign_changes", "sign ch.", "d"), ("max_du", "max|du| N", ".3g"),
         ("jumps_1N", "|du|>1N", "d"), ("min_clearance_m", "clear. m", ".4f"),
-        ("deviation_m", "dev. m", ".3g"), ("iteration_limit", "at limit", "d"),
+        ("deviation_m", "dev. m", ".3g"), ("iteration_limit", "at limit", ".0f"),
         ("median_ms", "med ms", ".3g"),
         ("p99_ms", "p99 ms", ".3g")], width=11)
     if set(args.windows) == set(WINDOWS) and set(args.solvers) == set(SOLVERS):

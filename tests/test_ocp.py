@@ -279,3 +279,28 @@ def test_a_bad_model_is_refused_naming_the_field(changes, message):
 # --- the import graph -------------------------------------------------------------------------
 
 
+
+
+def _a_with_shifted_yaw(a):
+    return ca.vertcat(a[0], a[1], a[2], 0, 0, a[3] + 1.0, 0, 0, 0, 0, 0, 0)
+
+
+@pytest.mark.parametrize("state", ["selection", "affine"])
+def test_the_numeric_equilibrium_is_casadis_to_the_bit(state):
+    """equilibrium_of gathers a selection by indexing and sends anything else to CasADi:
+    either way the numbers are CasADi's own, bit for bit, on random parameters."""
+    model = quadrotor_model()
+    if state == "affine":  # ψ_a = a_3 + 1: not a selection, CasADi evaluates it
+        a = ca.SX.sym("a", 4)
+        e = model.equilibria
+        model = dataclasses.replace(model, equilibria=dataclasses.replace(
+            e, state=ca.Function("state", [a], [_a_with_shifted_yaw(a)])))
+    ocp = OCP(_config(), model=model)
+    sym = ca.SX.sym("a", 4)
+    exact = ca.Function("exact", [sym], [*ocp.equilibrium(sym)])
+    for a in np.random.default_rng(4).normal(scale=10.0, size=(20, 4)):
+        ours = ocp.equilibrium_of(a)
+        theirs = [np.asarray(v, float).ravel() for v in exact(a)]
+        for mine, casadi_value in zip(ours, theirs, strict=True):
+            assert mine.shape == casadi_value.shape
+            assert np.array_equal(mine, casadi_value)

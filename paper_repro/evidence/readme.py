@@ -43,10 +43,11 @@ def fidelity() -> str:
              _ratio(r.tv_per_s_ratio),
              f"{r.hf_share:.2f}", f"{r.sign_changes:,}", f"{r.max_du:.2f}",
              f"{r.jumps_1N}", f"{r.min_clearance_m:.3f}", _metres(r.deviation_m),
-             f"{r.iteration_limit}"] for r in table.itertuples()]
+             "—" if pd.isna(r.iteration_limit) else f"{r.iteration_limit:.0f} of {r.steps}"]
+            for r in table.itertuples()]
     return markdown_table(["window", "solver", "TV of u, N/s", "TV / IPOPT", "power > 5 Hz",
                       "sign changes", "max |Δu|, N", "steps |Δu| > 1 N",
-                      "min clearance, m", "from IPOPT's path", "IPOPT at its limit"], rows)
+                      "min clearance, m", "from IPOPT's path", "at its iteration limit"], rows)
 
 
 def ground_robot() -> str:
