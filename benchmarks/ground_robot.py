@@ -12,7 +12,7 @@ JSON.
 
 The runs are flown by :func:`~paper_repro.sim.loop.simulate`, the quadrotor's closed loop: a
 run ends when the robot reaches its target, or when it stalls. What the flights determine
-goes to ``figures/ground_robot/ground_robot.csv`` (byte-stable; the README's table is
+goes to ``figures/ground_robot/ground_robot.csv`` (byte-stable; the book's table is
 formatted from it), the solve times to ``ground_robot_timings.csv`` (this machine's).
 """
 

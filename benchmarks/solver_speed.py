@@ -12,7 +12,7 @@ position deviation from the reference trajectory. The last line is the same tabl
 
 With ``--save`` the table is also written to ``figures/solver_speed/<scenario>/``: what the
 flights determine in ``speed.csv`` (byte-stable), the times in ``speed_timings.csv`` (this
-machine's), then the stamp; the README's speed tables are formatted from them.
+machine's), then the stamp; the book's speed tables are formatted from them.
 """
 
 from __future__ import annotations

@@ -15,13 +15,14 @@ Around it, each layer importing only the layers above it in this list:
 ``world``     shapes, scenes, random scenes, motion, the LiDAR, the region tracker
 ``sim``       the closed loop for any vehicle, its result, the plant, set-up checks
 ``analysis``  metrics of a run, statistics of a study, the mission's clock
+``evidence``  golden flights, the stamps, the tables of the README and the book
 ``studies``   the run cache, the catalogue of studies, the engine on Dask, the tuning
 ``plots``     figures, drawn from saved results
-``evidence``  golden flights, the reproduction pipeline, the README's tables
+``book``      the HTML book: the pages of docs/ and the executed notebooks
 ``cli``       ``python -m paper_repro COMMAND``
 ============  ===========================================================================
 
-The names below are the ones the README and the notebooks use.
+The names below are the ones the README, the book and the notebooks use.
 """
 
 from importlib.metadata import version

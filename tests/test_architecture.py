@@ -21,12 +21,13 @@ LAYERS = (
     {"evidence"},
     {"studies"},
     {"plots"},
+    {"book"},
     {"cli", "__main__"},
 )
 """From the bottom up. The paper's core is the layers up to ``solvers``."""
 
 CORE = {"vehicles", "problem", "solvers"}
-ABOVE_THE_CORE = {"world", "sim", "analysis", "evidence", "studies", "plots", "cli"}
+ABOVE_THE_CORE = {"world", "sim", "analysis", "evidence", "studies", "plots", "book", "cli"}
 
 
 def _modules() -> dict[str, Path]:

@@ -58,7 +58,8 @@ def test_the_help_lists_every_command():
                           capture_output=True, text=True, check=True).stdout
     for name in COMMANDS:
         assert name in text
-    assert set(COMMANDS) == {"run", "scene", "reproduce", "study", "tune", "golden", "readme"}
+    assert set(COMMANDS) == {"run", "scene", "reproduce", "study", "tune", "golden", "readme",
+                             "book"}
 
 
 def _subparser(name):

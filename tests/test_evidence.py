@@ -59,7 +59,7 @@ def test_golden_json_is_the_hash_of_the_committed_files():
 def test_every_committed_evidence_set_was_made_with_the_current_golden_flights():
     stale = evidence.stale_evidence()
     assert not stale, (f"evidence made with another golden set: {stale}; regenerate them "
-                       "(README, 'Regenerating the evidence')")
+                       "(docs/contributing.md)")
 
 
 def test_the_paper_evidence_is_there():

@@ -31,6 +31,15 @@ CI_OVERRIDES = {"08_animation": {"frames": 4}, "07_distance_tutorial": {"grid_po
 
 
 @pytest.fixture(scope="session")
+def executed_copies(tmp_path_factory):
+    """Where every notebook test leaves its executed copy: the quick run the book is built
+    from (``test_the_book_builds_from_the_quick_run``, last in this module)."""
+    folder = tmp_path_factory.getbasetemp() / "executed"
+    folder.mkdir(exist_ok=True)
+    return folder
+
+
+@pytest.fixture(scope="session")
 def tiny_results(tmp_path_factory):
     """Result folders of both metrics, simulated once per session through the cache."""
     cache = tmp_path_factory.getbasetemp() / "tiny-results"
@@ -110,12 +119,12 @@ def test_exactly_one_parameters_cell_and_reproduce_passes_only_declared_names(pa
 
 
 @pytest.mark.parametrize("name", [nb.name for nb in R.NOTEBOOKS])
-def test_notebook_executes_with_quick_parameters(name, tiny_results, tmp_path):
+def test_notebook_executes_with_quick_parameters(name, tiny_results, executed_copies, tmp_path):
     spec = SPECS[name]
     figures = tmp_path / "figures"
     params = R.notebook_parameters(spec, tiny_results, figures, quick=True,
                                    overrides=CI_OVERRIDES.get(name))
-    out = R.execute_notebook(R.notebook_path(name), tmp_path / f"{name}.ipynb", params)
+    out = R.execute_notebook(R.notebook_path(name), executed_copies / f"{name}.ipynb", params)
 
     executed = nbformat.read(out, as_version=4)
     code = [c for c in executed.cells if c.cell_type == "code"]
@@ -149,7 +158,8 @@ def test_notebook_executes_with_quick_parameters(name, tiny_results, tmp_path):
 
 
 @pytest.mark.parametrize("name", sorted(STUDY_NOTEBOOKS))
-def test_study_notebook_draws_from_the_saved_table(name, quick_studies, tmp_path):
+def test_study_notebook_draws_from_the_saved_table(name, quick_studies, executed_copies,
+                                                   tmp_path):
     study = quick_studies[STUDY_NOTEBOOKS[name]]
     assert (study.table["status"] == "ok").all(), study.failed["error"].tolist()
     figures = tmp_path / "figures"
@@ -159,7 +169,7 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, tmp_path
         params.update(STUDY_OVERRIDES[name])
         if "runs_dir" in R.declared_parameters(R.notebook_path(name)):  # it flies, too
             params["runs_dir"] = str(tmp_path / "runs")
-    out = R.execute_notebook(R.notebook_path(name), tmp_path / f"{name}.ipynb", params)
+    out = R.execute_notebook(R.notebook_path(name), executed_copies / f"{name}.ipynb", params)
     code = [c for c in nbformat.read(out, as_version=4).cells if c.cell_type == "code"]
     assert not any(o.get("output_type") == "error" for c in code for o in c.outputs)
     for f in STUDY_OUTPUTS[name]:
@@ -231,9 +241,9 @@ def quick_tuning(tmp_path_factory):
     return res
 
 
-def test_tuning_notebook_draws_from_the_saved_study(quick_tuning, tmp_path):
+def test_tuning_notebook_draws_from_the_saved_study(quick_tuning, executed_copies, tmp_path):
     figures = tmp_path / "figures"
-    out = R.execute_notebook(R.notebook_path(TUNING), tmp_path / f"{TUNING}.ipynb",
+    out = R.execute_notebook(R.notebook_path(TUNING), executed_copies / f"{TUNING}.ipynb",
                              {"tuning_dir": str(quick_tuning.directory),
                               "figures_dir": str(figures), "n_resamples": 200})
     code = [c for c in nbformat.read(out, as_version=4).cells if c.cell_type == "code"]
@@ -260,3 +270,20 @@ def test_notebook_without_parameters_cell_is_rejected(tmp_path):
     nbformat.write(nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("a = 1")]), path)
     with pytest.raises(ValueError, match="parameters"):
         R.check_parameters(path, {"a": 2})
+
+
+def test_the_book_builds_from_the_quick_run(executed_copies, tmp_path):
+    """The book, built (warnings are errors) from the notebooks the tests above executed: a
+    page per notebook with its outputs, every page of docs/, the API reference. Run alone,
+    it fails naming the notebooks that were not executed and the command for each."""
+    from paper_repro.book.site import build, notebook_names
+
+    index = build(quick=True, executed=executed_copies, out=tmp_path / "book", log=lambda _: None)
+    html = index.parent
+    for name in notebook_names():
+        page = (html / "notebooks" / f"{name}.html").read_text()
+        assert "cell_output" in page, f"{name}: the page shows no output"
+    for page in ("reproduction", "method", "solvers", "usage", "own_model", "failures",
+                 "contributing", "api", "studies/index", "studies/monte_carlo"):
+        assert (html / f"{page}.html").is_file(), page
+    assert list((html / "generated").glob("paper_repro.solvers.rti.html"))

@@ -31,6 +31,8 @@ from paper_repro.plots.flight import (
     plot_states,
     plot_thrusts,
     plot_tracking_errors,
+    setup_label,
+    view_window,
 )
 from paper_repro.plots.moving import (
     PREDICTION_COLOURS,
@@ -142,9 +144,9 @@ def test_paper_figures_draw_decimated_lines(result, scene):
     }
     assert len(figs["thrusts"].axes) == 4 and len(figs["states"].axes) == 3
     # Lines per axes: f_i, u_a,i and the target switch; e_x, e_y, e_z, the zero line and the
-    # switch; x_I, x_a, x_t; trajectory, start and targets in a projection; one CDF.
+    # switch; x_I, x_a, x_t; trajectory, start and targets in a projection; one tail and T_s.
     per_axes = {"3d": [1], "xz": [3], "xy": [3], "thrusts": [3] * 4, "errors": [5],
-                "states": [3] * 3, "solve": [1]}
+                "states": [3] * 3, "solve": [2]}
     for name, fig in figs.items():
         assert [len(ax.get_lines()) for ax in fig.axes] == per_axes[name], name
         for ax in fig.axes:
@@ -185,9 +187,11 @@ def test_paper_figures_draw_decimated_lines(result, scene):
         k = _drawn_steps(result, x_t)
         assert np.array_equal(x_t.get_ydata(), result.targets[result.target_index[k], i])
         assert ax.get_ylabel() == f"{'xyz'[i]} [m]"
-    cdf = figs["solve"].axes[0].get_lines()[0]
-    assert np.allclose(cdf.get_xdata(), 80.0) and cdf.get_ydata()[-1] == 1.0
-    assert np.all(np.diff(cdf.get_ydata()) > 0)
+    tail, ts = figs["solve"].axes[0].get_lines()  # share of steps at least this slow; T_s
+    n = len(result.solve_time)
+    assert np.allclose(tail.get_xdata(), 80.0) and tail.get_ydata()[0] == 1.0
+    assert np.all(np.diff(tail.get_ydata()) < 0) and tail.get_ydata()[-1] == 1.0 / n
+    assert np.array_equal(ts.get_xdata(), [10.0, 10.0])  # T_s = 10 ms
     for fig in figs.values():
         plt.close(fig)
     # The spectrum has one point per Welch bin: 512 above 0 Hz; the cut-off is marked.
@@ -234,6 +238,34 @@ def test_zoom_on_the_closest_approach(result):
         plt.close(fig)
     with pytest.raises(ValueError, match="t_range"):
         plot_thrusts(result, t_range=(100.0, 200.0))
+
+
+def test_the_view_window_starts_before_the_first_point_in_view_and_titles_say_zoom(result):
+    visible = np.zeros(result.steps, int)
+    visible[2500:2600] = 7  # a point in view from t = 25 s
+    seen = dataclasses.replace(result, visible_points=visible)
+    assert view_window(seen) == pytest.approx((24.0, 44.0))
+    assert view_window(seen, width=100.0) == pytest.approx((24.0, 59.99))  # clipped to the run
+    assert view_window(result) == pytest.approx((0.0, 20.0))  # nothing seen: the start
+    fig = plot_thrusts(seen, t_range=view_window(seen), full_range=True)
+    lower, upper = seen.config.nmpc.input_lower, seen.config.nmpc.input_upper
+    for ax, lo, hi in zip(fig.axes, lower, upper, strict=True):  # the whole box 𝒰, padded
+        bottom, top = ax.get_ylim()
+        assert bottom < lo < hi < top and top - bottom < 1.1 * (hi - lo)
+    title = fig.axes[0].get_title()
+    assert "zoom 24–44 s" in title and setup_label(seen) in title
+    plt.close(fig)
+
+
+def test_the_set_up_label_names_the_preset_and_its_horizon(result):
+    from paper_repro.presets import preset
+
+    assert setup_label(result).startswith("preset paper, the printed set-up, N = 35")
+    timeline = dataclasses.replace(result, config=preset("paper-timeline", result.config))
+    assert setup_label(timeline) == "preset paper-timeline, N = 43"
+    tuned = dataclasses.replace(result, config=dataclasses.replace(
+        result.config, barrier=dataclasses.replace(result.config.barrier, mu=1.0)))
+    assert setup_label(tuned) == "N = 35"  # neither preset: only what is certain
 
 
 def test_projection_rejects_unknown_plane(result, scene):
@@ -344,7 +376,10 @@ def test_solve_time_legend_shows_sub_millisecond_medians(result, seconds, shown)
     fast = dataclasses.replace(result, solve_time=np.full(len(result.solve_time), seconds))
     fig = plot_solve_times([fast])
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
-    assert labels == [f"smooth (median {shown})"]
+    assert labels == [f"smooth (median {shown}, max {shown})", "$T_s$ = 10 ms"]
+    # The tail: the share of steps at least as slow, 1 at the fastest step.
+    tail = fig.axes[0].get_lines()[0].get_ydata()
+    assert tail[0] == 1.0 and np.all(np.diff(tail) <= 0) and tail[-1] > 0
     plt.close(fig)
 
 
@@ -652,16 +687,46 @@ def test_prediction_study_draws_rates_and_runs_per_prediction_and_metric():
                              "min_clearance_m": clear + 0.1 * seed,
                              "tv_u_rate_N_per_s": (2.0 if m == "smooth" else 500.0) + seed})
     fig = plot_prediction_study(pd.DataFrame(rows))
-    completed, collided, stalled, step_limit, clearance, tv = fig.axes
+    # No run hit the step limit: no empty panel for it, and the title says so.
+    completed, collided, stalled, clearance, tv = fig.axes
+    assert fig.get_suptitle() == "no run of any group ended step limit"
+    assert [ax.get_title() for ax in (completed, collided, stalled)] == [
+        "completed rate", "collision rate", "stalled rate"]
     assert [t.get_text() for t in collided.get_xticklabels()] == ["static", "oracle", "kalman"]
     heights = [b.get_height() for b in collided.patches]  # smooth then euclidean, per prediction
     assert np.allclose(heights, [0.5, 0.0, 0.0] * 2)
     assert np.allclose([b.get_height() for b in completed.patches], 0.75)
-    assert np.allclose([b.get_height() for b in step_limit.patches], 0.0)
+    assert np.allclose([b.get_height() for b in stalled.patches], 0.25)
     dots = [c for c in clearance.collections if isinstance(c, PathCollection)]
     assert len(dots) == 6 and all(len(c.get_offsets()) == 4 for c in dots)
     medians = sorted(seg[0][1] for c in clearance.collections if isinstance(c, LineCollection)
                      for seg in c.get_segments())
     assert np.allclose(medians, [0.35, 0.35, 0.65, 0.65, 0.75, 0.75])
     assert tv.get_yscale() == "log"
+    plt.close(fig)
+
+
+def test_the_sweep_figure_shows_completion_and_collision_on_the_whole_share_axis():
+    import pandas as pd
+
+    from paper_repro.plots.studies import plot_sweep
+
+    rows = [{"metric": "euclidean", "eta": 0.0, "sigma": np.nan}]
+    rows += [{"metric": "smooth", "eta": eta, "sigma": 0.8} for eta in (0.1, 0.3, 0.8)]
+    table = pd.DataFrame(rows)
+    for col in ("tv_u_rate_N_per_s", "hf_energy_fraction", "min_clearance_m",
+                "time_to_complete_s", "max_abs_du_N"):
+        table[col] = [100.0, 50.0, 5.0, 1.0]
+    for event, values in (("completed", [0.5, 0.6, 0.95, 0.75]),
+                          ("stalled", [0.1, 0.2, 0.0, 0.0]),
+                          ("collision", [0.0, 0.0, 0.0, 0.25])):
+        table[f"{event}_rate"] = values
+        table[f"{event}_low"], table[f"{event}_high"] = table[f"{event}_rate"] - 0.1, 1.0
+    fig = plot_sweep(table, "eta", fixed={"sigma": 0.8})
+    shown = {ax.get_title(): ax for ax in fig.axes if ax.get_visible()}
+    assert len(shown) == 8
+    collision = shown["collision rate (clearance < 0.35 m)"]
+    assert np.allclose(collision.get_lines()[0].get_ydata(), [0.0, 0.0, 0.25])  # η = 0.1 .. 0.8
+    assert collision.get_ylim() == pytest.approx((-0.05, 1.05))
+    assert np.allclose(shown["completion rate"].get_lines()[0].get_ydata(), [0.6, 0.95, 0.75])
     plt.close(fig)

@@ -1,18 +1,18 @@
-"""The README's numbers are formatted from the committed tables (paper_repro.evidence.readme)."""
+"""The numbers of the README and the book's pages are formatted from the committed tables
+(paper_repro.evidence.readme)."""
 
 import pytest
 
 from paper_repro.evidence import readme as report
 
 
-def test_every_readme_block_is_what_its_table_renders():
-    text = report.readme_path().read_text()
-    found = report.blocks(text)
-    assert set(found) == set(report.BLOCKS), "README blocks and report.BLOCKS differ"
-    rendered = report.blocks(report.render(text))
-    stale = [name for name in found
-             if name not in report.MACHINE_BLOCKS and found[name] != rendered[name]]
-    assert not stale, f"README blocks out of date (python -m paper_repro readme): {stale}"
+def test_every_block_of_every_page_is_what_its_table_renders():
+    found = report.page_blocks()  # raises when a block is on two pages
+    assert set(found) == set(report.BLOCKS), "the pages' blocks and report.BLOCKS differ"
+    stale = [f"{page.name}:{name}" for name, (page, body) in found.items()
+             if name not in report.MACHINE_BLOCKS
+             and report.blocks(report.render(page.read_text()))[name] != body]
+    assert not stale, f"blocks out of date (python -m paper_repro readme): {stale}"
 
 
 def test_render_replaces_only_block_bodies_and_names_unknown_blocks():

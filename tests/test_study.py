@@ -174,6 +174,13 @@ def test_an_interrupted_study_redoes_only_the_unfinished_runs(tmp_path):
     again = S.run_study(study, out=tmp_path, workers=0, progress=False, log=lambda line: None)
     assert int(again.table["simulated"].sum()) == len(study.specs) - done_before
     assert (again.table["status"] == "ok").all()
+    # A third call flies nothing: the tables are rewritten byte for byte, and the timings of
+    # the call that flew the runs stay (the cache's speed is not the study's).
+    files = {n: (tmp_path / n).read_bytes() for n in ("table.parquet", "timings.csv",
+                                                      "timings.json", "study.json")}
+    cached = S.run_study(study, out=tmp_path, workers=0, progress=False, log=lambda line: None)
+    assert not cached.table["simulated"].any()
+    assert {n: (tmp_path / n).read_bytes() for n in files} == files
 
 
 def test_a_run_that_raises_inside_a_worker_is_a_failed_row(tmp_path, monkeypatch):

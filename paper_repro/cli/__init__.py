@@ -10,7 +10,8 @@
 ``study``          fly a study of the catalogue, write its table and figures
 ``tune``           tune the avoidance parameters with Optuna
 ``golden``         fly the golden flights and compare or write them
-``readme``         write or check the README's tables
+``readme``         write or check the tables of the README and docs/
+``book``           build the HTML book from docs/ and the executed notebooks
 =================  ==================================================================
 """
 

@@ -9,6 +9,7 @@
     python -m paper_repro tune [--trials N] [--quick] [--workers N] [--storage URL]
     python -m paper_repro golden [--write]
     python -m paper_repro readme [--check]
+    python -m paper_repro book [--quick]
 """
 
 from __future__ import annotations
@@ -16,10 +17,11 @@ from __future__ import annotations
 import argparse
 import sys
 
-from paper_repro.cli import golden, readme, reproduce, run, scene, study, tune
+from paper_repro.cli import book, golden, readme, reproduce, run, scene, study, tune
 
 COMMANDS = {"run": run, "scene": scene, "reproduce": reproduce,
-            "study": study, "tune": tune, "golden": golden, "readme": readme}
+            "study": study, "tune": tune, "golden": golden, "readme": readme,
+            "book": book}
 """Every command: a module with ``HELP``, ``add_arguments(parser)`` and
 ``main(args)``; ``main`` checks every option before anything is built or flown."""
 

@@ -1,25 +1,30 @@
-"""``python -m paper_repro readme``: write (or check) the README's tables from figures/."""
+"""``python -m paper_repro readme``: write (or check) the tables of the README and the book's
+pages from figures/."""
 
 from __future__ import annotations
 
-from paper_repro.evidence.readme import blocks, readme_path, render
+from paper_repro.evidence.readme import blocks, page_paths, render
 
-HELP = "write the README's tables from the committed tables in figures/ (--check: only compare)"
-
+HELP = ("write the tables of the README and of docs/ from the committed tables in figures/ "
+        "(--check: only compare)")
 
 
 def main(args) -> int:
     """``python -m paper_repro readme [--check]``."""
-    path = readme_path()
-    text = path.read_text()
-    new = render(text)
+    stale, written = [], 0
+    for path in page_paths():
+        text = path.read_text()
+        new = render(text)
+        if args.check:
+            stale += [f"{path.name}:{n}" for n, body in blocks(text).items()
+                      if blocks(new)[n] != body]
+        elif new != text:
+            path.write_text(new)
+        written += len(blocks(new))
     if args.check:
-        stale = [n for n, body in blocks(text).items() if blocks(new)[n] != body]
-        print("README blocks out of date: " + ", ".join(stale) if stale else
-              "README blocks are current")
+        print("blocks out of date: " + ", ".join(stale) if stale else "every block is current")
         return 1 if stale else 0
-    path.write_text(new)
-    print(f"README: {len(blocks(new))} block(s) written from figures/")
+    print(f"{written} block(s) written from figures/ into the README and docs/")
     return 0
 
 

@@ -1,9 +1,9 @@
-"""The committed evidence: the golden flights every evidence set is stamped with, and the README's
-tables formatted from the committed tables.
+"""The committed evidence: the golden flights every evidence set is stamped with, and the tables
+of the README and the book formatted from the committed tables.
 
 =================  ==================================================================
 ``golden``         the golden flights and the stamps every evidence set carries
-``readme``         the README's tables, formatted from the committed tables
+``readme``         the tables of the README and the book, from the committed ones
 =================  ==================================================================
 """
 
@@ -25,7 +25,15 @@ from paper_repro.evidence.golden import (
     stamped_hash,
     write_golden,
 )
-from paper_repro.evidence.readme import BLOCKS, blocks, markdown_table, readme_path, render
+from paper_repro.evidence.readme import (
+    BLOCKS,
+    blocks,
+    markdown_table,
+    page_blocks,
+    page_paths,
+    readme_path,
+    render,
+)
 
 __all__ = [
     "BLOCKS",
@@ -39,6 +47,8 @@ __all__ = [
     "GoldenFlight",
     "INPUT_TOLERANCE",
     "markdown_table",
+    "page_blocks",
+    "page_paths",
     "POSITION_TOLERANCE",
     "readme_path",
     "recomputed_golden_hash",

@@ -52,7 +52,9 @@ from paper_repro.plots.flight import (
     plot_states,
     plot_thrusts,
     plot_tracking_errors,
+    setup_label,
     steps_in,
+    view_window,
     workspace_limits,
 )
 from paper_repro.plots.moving import (
@@ -133,10 +135,12 @@ __all__ = [
     "save_animation",
     "save_figure",
     "scan_change_times",
+    "setup_label",
     "slice_grid",
     "slice_through",
     "SPHERE_COLOR",
     "steps_in",
     "stride_indices",
+    "view_window",
     "workspace_limits",
 ]

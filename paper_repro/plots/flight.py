@@ -3,6 +3,8 @@ states, and the summary figures of several flights."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -50,6 +52,8 @@ def plot_flight_3d(result, scene, ax=None, sphere_steps=None, n_spheres: int = 4
         draw_sphere(ax, pos[k], r_s, label=f"LiDAR range ($r_s$ = {r_s:g} m)" if j == 0 else None)
     mark_start_and_targets(ax, scene, three_d=True)
     workspace_limits(ax, three_d=True)
+    ax.set_title(f"3-D flight ({result.config.distance.metric} distance)\n"
+                 f"{setup_label(result)}", fontsize="medium")
     ax.legend(loc="upper left", fontsize="small")
     return fig
 
@@ -77,33 +81,42 @@ def plot_projection(result, scene, plane: str = "xz", ax=None, max_points: int =
     ax.set_aspect("equal")
     ax.set_xlabel(AXIS_LABELS[axes_idx[0]])
     ax.set_ylabel(AXIS_LABELS[axes_idx[1]])
-    ax.set_title(f"projection onto the {plane.upper()}-plane")
+    ax.set_title(f"projection onto the {plane.upper()}-plane ({result.config.distance.metric} "
+                 f"distance)\n{setup_label(result)}", fontsize="medium")
     ax.legend(loc="best", fontsize="small")
     ax.grid(alpha=0.3)
     return fig
 
 
-def plot_thrusts(result, axes=None, max_points: int = MAX_POINTS, t_range=None):
+def plot_thrusts(result, axes=None, max_points: int = MAX_POINTS, t_range=None,
+                 full_range: bool = False):
     """Figs. 4 and 8: thrusts f1..f4 (N) against time, with the artificial input u_a (dashed).
 
     ``axes`` : four Axes (a new 4×1 figure if omitted). ``t_range`` : (t0, t1) s to draw only
-    part of the run, e.g. :func:`avoidance_window`.
+    part of the run, e.g. :func:`view_window` (the title then says "zoom"). ``full_range`` :
+    every panel spans the input box 𝒰 (0–12 N for the quadrotor), so that the two metrics'
+    zooms share their axes and compare at a glance.
     """
     fig, axes = axes_column(axes, 4, figsize=(7, 6.5))
     k = steps_in(result, t_range)
     t, u, u_a = result.t[k], result.u[k], result.u_a[k]
+    lower, upper = (np.asarray(result.config.nmpc.input_lower, float),
+                    np.asarray(result.config.nmpc.input_upper, float))
     for i, ax in enumerate(axes):
         idx = envelope_indices(u[:, i], max_points)
         ax.plot(t[idx], u[idx, i], color="tab:blue", lw=0.8, label=f"$f_{i + 1}$")
         idx = envelope_indices(u_a[:, i], max_points)
         ax.plot(t[idx], u_a[idx, i], "--", color="tab:orange", lw=1.0,
                 label=f"$u_{{a,{i + 1}}}$")
+        if full_range:
+            pad = 0.04 * (upper[i] - lower[i])
+            ax.set_ylim(lower[i] - pad, upper[i] + pad)
         ax.set_ylabel(f"$f_{i + 1}$ [N]")
-        ax.legend(loc="upper right", fontsize="small", ncol=2)
         ax.grid(alpha=0.3)
         _mark_target_switches(ax, result, t)
+        ax.legend(loc="upper right", fontsize="small", ncol=3)
     axes[-1].set_xlabel("t [s]")
-    axes[0].set_title(f"rotor thrusts ({result.config.distance.metric} distance)")
+    _title(axes[0], "rotor thrusts", result, t, t_range)
     return fig
 
 
@@ -130,7 +143,8 @@ def plot_tracking_errors(result, ax=None, max_points: int = MAX_POINTS, t_range=
     _mark_target_switches(ax, result, t)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("error [m]" if signed else "absolute error [m]")
-    ax.set_title(f"output tracking error ({result.config.distance.metric} distance)")
+    _title(ax, "absolute output tracking error" if not signed else "output tracking error",
+           result, t, t_range)
     ax.legend(loc="upper right", fontsize="small")
     ax.grid(alpha=0.3)
     return fig
@@ -157,7 +171,7 @@ def plot_states(result, axes=None, max_points: int = MAX_POINTS, t_range=None):
         ax.legend(loc="upper right", fontsize="small", ncol=3)
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel("t [s]")
-    axes[0].set_title(f"UAV position ({result.config.distance.metric} distance)")
+    _title(axes[0], "UAV position", result, t, t_range)
     return fig
 
 
@@ -169,21 +183,40 @@ def avoidance_window(result, half_width: float = 10.0) -> tuple[float, float]:
     return float(max(t[0], tc - half_width)), float(min(t[-1], tc + half_width))
 
 
+def view_window(result, width: float = 20.0, before: float = 1.0) -> tuple[float, float]:
+    """(t0, t1) s: ``width`` seconds from ``before`` seconds ahead of the first step with a
+    region in view, clipped to the run. Both metrics fly the same path until then (the
+    controller is the same without a cloud in view), so their windows coincide: the zooms
+    of Figs. 4 and 8 show the same seconds. A run that never sees a region: its first
+    ``width`` seconds."""
+    t = np.asarray(result.t, float)
+    seen = np.flatnonzero(np.asarray(result.visible_points) > 0)
+    t0 = max(t[0], t[seen[0]] - before) if len(seen) else t[0]
+    return float(t0), float(min(t[-1], t0 + width))
+
+
 # --- summary figures ------------------------------------------------------------------------
 
 def plot_solve_times(results, ax=None, max_points: int = MAX_POINTS):
-    """Empirical distribution (CDF) of the solve times of each run, ms, log scale."""
+    """The tail of the solve times: the share of the steps whose controller call took at
+    least t (ms), both axes logarithmic, with the sampling period T_s marked (a call longer
+    than T_s misses the real-time deadline)."""
     fig, ax = axes_or_new(ax, figsize=(6, 3.5))
     for r, ls in zip(results, _LINESTYLES):
         ms = np.sort(np.asarray(r.solve_time) * 1e3)
         idx = stride_indices(len(ms), max_points)
-        ax.step(ms[idx], (idx + 1) / len(ms), where="post", ls=ls,
-                label=f"{r.config.distance.metric} (median {np.median(ms):.2g} ms)")
+        ax.step(ms[idx], (len(ms) - idx) / len(ms), where="post", ls=ls,
+                label=f"{r.config.distance.metric} (median {np.median(ms):.2g} ms, "
+                      f"max {ms[-1]:.2g} ms)")
+    if results:
+        ts_ms = 1e3 * results[0].config.nmpc.ts
+        ax.axvline(ts_ms, color="tab:red", lw=1.0, label=f"$T_s$ = {ts_ms:g} ms")
     ax.set_xscale("log")
-    ax.set_xlabel("solve time [ms]")
-    ax.set_ylabel("fraction of steps")
-    ax.set_title("NMPC solve times")
-    ax.legend(loc="lower right", fontsize="small")
+    ax.set_yscale("log")
+    ax.set_xlabel("solve time t [ms]")
+    ax.set_ylabel("share of steps taking ≥ t")
+    ax.set_title("NMPC solve times: the tail against $T_s$")
+    ax.legend(loc="lower left", fontsize="small")
     ax.grid(alpha=0.3, which="both")
     return fig
 
@@ -250,11 +283,37 @@ def workspace_limits(ax, three_d: bool):
 
 
 def _mark_target_switches(ax, result, t):
-    """Dotted lines at the target switches that fall inside the drawn times ``t``."""
+    """Dotted lines, labelled "target switch", at the switches inside the drawn times ``t``."""
     ts = result.config.nmpc.ts
-    for k in np.asarray(result.reached)[:-1]:
+    for n, k in enumerate(np.asarray(result.reached)[:-1]):
         if k >= 0 and len(t) and t[0] <= k * ts <= t[-1]:
-            ax.axvline(k * ts, ls=":", color="gray", lw=1.0)
+            ax.axvline(k * ts, ls=":", color="gray", lw=1.0,
+                       label="target switch" if n == 0 else None)
+
+
+def _title(ax, what: str, result, t, t_range) -> None:
+    """``what (metric distance[, zoom t0–t1 s])`` over the set-up (:func:`setup_label`)."""
+    zoom = f", zoom {t[0]:.0f}–{t[-1]:.0f} s" if t_range is not None and len(t) else ""
+    ax.set_title(f"{what} ({result.config.distance.metric} distance{zoom})\n"
+                 f"{setup_label(result)}", fontsize="medium")
+
+
+def setup_label(result) -> str:
+    """The set-up a run flew, for a figure's title: the preset (``paper``, the printed one, or
+    ``paper-timeline``) whose controller and avoidance parameters it flew, with its horizon;
+    else just "N = …"."""
+    from paper_repro.config import Config
+    from paper_repro.presets import PRESETS
+
+    cfg = result.config
+    for name, preset in PRESETS.items():
+        ref = preset.apply(Config())
+        ref = dataclasses.replace(ref, distance=dataclasses.replace(
+            ref.distance, metric=cfg.distance.metric))
+        if (ref.nmpc, ref.barrier, ref.distance) == (cfg.nmpc, cfg.barrier, cfg.distance):
+            printed = ", the printed set-up" if name == "paper" else ""
+            return f"preset {name}{printed}, N = {cfg.nmpc.horizon}"
+    return f"N = {cfg.nmpc.horizon}"
 
 
 def steps_in(result, t_range) -> np.ndarray:

@@ -56,7 +56,7 @@ def prediction_velocities(result) -> np.ndarray:
 
 def plot_clearance_time(results, labels, ax=None, t_range=None,
                         collision: float = metrics.COLLISION_CLEARANCE,
-                        max_points: int = MAX_POINTS):
+                        max_points: int = MAX_POINTS, top: float | None = None):
     """Clearance against time for several runs, with the collision threshold.
 
     One line per run: the true minimum distance from the UAV to any cloud point (where the
@@ -71,6 +71,8 @@ def plot_clearance_time(results, labels, ax=None, t_range=None,
     t_range : (t0, t1) s, the same for every run (all steps when ``None``).
     collision : m, the collision threshold (dotted line).
     max_points : cap on the points drawn per line (min/max envelope).
+    top : m, the top of the clearance axis; default: the LiDAR range plus 1 m (farther away
+        nothing is seen, and a long axis would squash the closest approach).
 
     Returns
     -------
@@ -91,9 +93,11 @@ def plot_clearance_time(results, labels, ax=None, t_range=None,
                 label=f"{label}: min {c[j]:.3f} m at {t[j]:.2f} s")
         ax.plot(t[j], c[j], "o", color=colour, ms=5)
     ax.axhline(collision, color="k", ls=":", lw=1, label=f"collision < {collision:g} m")
-    ax.set_ylim(bottom=0.0)
+    top = top if top is not None else results[0].config.simulation.lidar_range + 1.0
+    ax.set_ylim(0.0, top)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("clearance [m]")
+    ax.set_title(f"clearance ({results[0].config.distance.metric} distance)", fontsize=9)
     ax.legend(fontsize="small", frameon=False)
     ax.grid(alpha=0.3)
     return fig
@@ -353,7 +357,8 @@ def plot_prediction_study(table, events=("completed", "collision", "stalled", "s
 
     Returns
     -------
-    matplotlib Figure with ``len(events) + 2`` Axes (in rows of three).
+    matplotlib Figure with ``len(events) + 2`` Axes (in rows of three), less the events no
+    run had (named in the figure's title instead of drawn as empty panels).
     """
     from paper_repro.analysis.statistics import rates as outcome_rates
 
@@ -361,6 +366,9 @@ def plot_prediction_study(table, events=("completed", "collision", "stalled", "s
     present = list(dict.fromkeys(table["prediction"]))
     predictions = [p for p in order if p in present] + [p for p in present if p not in order]
     metrics_ = list(dict.fromkeys(table["metric"]))
+    rates = outcome_rates(table, by=["prediction", "metric"])
+    never = [e for e in events if not rates.loc[rates["event"] == e, "k"].any()]
+    events = [e for e in events if e not in never]  # no empty panel: named in the title
     n_panels = len(events) + 2
     rows = int(np.ceil(n_panels / 3))
     fig, grid = plt.subplots(rows, 3, figsize=(12.0, 3.3 * rows), constrained_layout=True,
@@ -368,7 +376,9 @@ def plot_prediction_study(table, events=("completed", "collision", "stalled", "s
     axes = grid.ravel()
     for ax in axes[n_panels:]:
         ax.remove()
-    rates = outcome_rates(table, by=["prediction", "metric"])
+    if never:
+        fig.suptitle("no run of any group ended " + " or ".join(e.replace("_", " ")
+                                                                for e in never), fontsize=9)
     width = 0.8 / max(len(metrics_), 1)
     x = np.arange(len(predictions))
     for ax, event in zip(axes, events):

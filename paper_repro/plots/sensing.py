@@ -69,7 +69,8 @@ def plot_sensing_window(sensor_range: float = 3.0, widths=(0.25, 0.5, 1.0), ax=N
 
 
 def plot_scan_change_thrusts(results, labels, t_range=None, max_points: int = MAX_POINTS,
-                             threshold: float = metrics.SCAN_STEP_THRESHOLD):
+                             threshold: float = metrics.SCAN_STEP_THRESHOLD,
+                             rotors=(0, 1, 2, 3), du_floor: float | None = None):
     """Rotor thrusts of several runs side by side, with the changes of the visible set marked.
 
     One column per run: f1..f4 (N) against time, then the largest rotor step
@@ -84,16 +85,22 @@ def plot_scan_change_thrusts(results, labels, t_range=None, max_points: int = MA
     t_range : (t0, t1) s, the same for every run (e.g. :func:`avoidance_window` of the first).
     max_points : cap on the points drawn per line (min/max envelope).
     threshold : N, a step above it at a change counts as a jump (dotted line).
+    rotors : the rotors drawn (indices into f1..f4), one row each.
+    du_floor : N, the bottom of the step axis (``None``: wherever the smallest step is).
 
     Returns
     -------
-    matplotlib Figure; its Axes form a (5, len(results)) grid.
+    matplotlib Figure; its Axes form a (len(rotors) + 1, len(results)) grid, titled with the
+    runs' metric.
     """
     results, labels = list(results), list(labels)
     if not results or len(labels) != len(results):
         raise ValueError(f"need one label per run, got {len(results)} runs and {len(labels)} "
                          "labels")
-    fig, axes = plt.subplots(5, len(results), figsize=(4.2 * len(results) + 0.8, 8.0),
+    rotors = list(rotors)
+    rows = len(rotors) + 1
+    fig, axes = plt.subplots(rows, len(results),
+                             figsize=(4.2 * len(results) + 0.8, 1.6 * rows + 1.6),
                              sharex="col", sharey="row", squeeze=False,
                              constrained_layout=True)
     for j, (result, label) in enumerate(zip(results, labels, strict=True)):
@@ -102,25 +109,27 @@ def plot_scan_change_thrusts(results, labels, t_range=None, max_points: int = MA
         col = axes[:, j]
         changes = scan_change_times(result)
         changes = changes[(changes >= t[0]) & (changes <= t[-1])]
-        for i in range(4):
+        for row, i in enumerate(rotors):
             idx = envelope_indices(u[:, i], max_points)
-            col[i].plot(t[idx], u[idx, i], color="tab:blue", lw=0.8)
+            col[row].plot(t[idx], u[idx, i], color="tab:blue", lw=0.8)
             if j == 0:
-                col[i].set_ylabel(f"$f_{i + 1}$ [N]")
+                col[row].set_ylabel(f"$f_{i + 1}$ [N]")
         du = np.abs(np.diff(np.asarray(result.u, float), axis=0)).max(axis=1)
         kd = k[k >= 1]  # step k: the change from u_{k-1} to u_k
         du_k = du[kd - 1]
         idx = envelope_indices(du_k, max_points)
-        col[4].plot(result.t[kd][idx], du_k[idx], color="tab:blue", lw=0.6)
+        col[-1].plot(result.t[kd][idx], du_k[idx], color="tab:blue", lw=0.6)
         at = np.isin(result.t[kd], changes)
-        col[4].plot(result.t[kd][at], du_k[at], "o", color="tab:orange", ms=3,
+        col[-1].plot(result.t[kd][at], du_k[at], "o", color="tab:orange", ms=3,
                     label="change of the visible set")
-        col[4].axhline(threshold, color="k", ls=":", lw=1, label=f"{threshold * 1e3:g} mN")
-        col[4].set_yscale("log")
-        col[4].set_xlabel("t [s]")
+        col[-1].axhline(threshold, color="k", ls=":", lw=1, label=f"{threshold * 1e3:g} mN")
+        col[-1].set_yscale("log")
+        if du_floor is not None:
+            col[-1].set_ylim(bottom=du_floor)
+        col[-1].set_xlabel("t [s]")
         if j == 0:
-            col[4].set_ylabel("max$_i$ |Δf$_i$| [N]")
-            col[4].legend(loc="lower right", fontsize="x-small", frameon=False)
+            col[-1].set_ylabel("max$_i$ |Δf$_i$| [N]")
+            col[-1].legend(loc="lower right", fontsize="x-small", frameon=False)
         for ax in col:
             for tc in changes:
                 ax.axvline(tc, color="tab:orange", lw=0.5, alpha=0.5)
@@ -128,6 +137,9 @@ def plot_scan_change_thrusts(results, labels, t_range=None, max_points: int = MA
         jumps = int(np.sum(du_k[at] > threshold))
         col[0].set_title(f"{label}\n{len(changes)} changes of the visible set, {jumps} with a "
                          f"step > {threshold * 1e3:g} mN", fontsize=9)
+    metrics_ = ", ".join(dict.fromkeys(r.config.distance.metric for r in results))
+    fig.suptitle(f"rotor thrusts around the changes of the visible set ({metrics_} distance)",
+                 fontsize=10)
     return fig
 
 

@@ -68,11 +68,12 @@ def plot_paired(table, a: str = "smooth", b: str = "euclidean", pair_on: str = "
     return fig
 
 
-def plot_paired_by(paired, by: str):
+def plot_paired_by(paired, by: str, a: str = "smoothed", b: str = "Euclidean"):
     """The paired effects of :func:`paper_repro.analysis.statistics.paired` (median and 95 %
-    interval)
-    for each value of ``by`` side by side, one panel per measure; ratios on a log axis with the
-    line of no difference."""
+    interval) for each value of ``by`` side by side, one panel per measure; ratios on a log
+    axis with the line of no difference. ``a`` and ``b`` name the two sides of the pairs for
+    the caption that defines the effect ("ratio b/a": b's measure over a's on the same
+    scene, its median over the scenes)."""
     measures = list(dict.fromkeys(paired["measure"]))
     groups = list(dict.fromkeys(paired[by]))
     fig, axes = plt.subplots(1, len(measures), figsize=(3.0 * len(measures), 3.0),
@@ -90,6 +91,8 @@ def plot_paired_by(paired, by: str):
         ax.set_xticks(x, groups)
         ax.set_xlim(-0.6, len(groups) - 0.4)
         ax.set_title(f"{rows['label'].iloc[0]}\n({rows['effect'].iloc[0]})", fontsize=8)
+    fig.supxlabel(f"b = {b}, a = {a}, on the same scene: ratio b/a (or difference b − a) per "
+                  "scene, its median over the scenes and 95 % bootstrap interval", fontsize=8)
     return fig
 
 
@@ -134,8 +137,10 @@ def plot_sweep(settings, x: str, fixed: dict, columns=(
         ("hf_energy_fraction", "thrust power above 5 Hz", False),
         ("min_clearance_m", "min clearance, m", False),
         ("time_to_complete_s", "passage time, s", False),
+        ("max_abs_du_N", "max |Δu|, N", False),
+        ("completed_rate", "completion rate", False),
         ("stalled_rate", "stall rate", False),
-        ("completed_rate", "completion rate", False))):
+        ("collision_rate", "collision rate (clearance < 0.35 m)", False))):
     """Medians over scenes (bands: their 95 % intervals) of the smooth runs against ``x``
     (``"eta"`` or ``"sigma"``) with the other parameter held at ``fixed``; the Euclidean
     baseline as a dashed line (:func:`paper_repro.analysis.statistics.by_setting`)."""
@@ -144,8 +149,12 @@ def plot_sweep(settings, x: str, fixed: dict, columns=(
         smooth = smooth[np.isclose(smooth[name], value)]
     smooth = smooth.sort_values(x)
     base = settings[settings["metric"] == "euclidean"]
-    fig, axes = plt.subplots(2, 3, figsize=(11.0, 5.6), constrained_layout=True)
-    for ax, (col, label, log) in zip(axes.ravel(), columns, strict=True):
+    rows = -(-len(columns) // 4)
+    fig, axes = plt.subplots(rows, 4, figsize=(14.0, 2.8 * rows), constrained_layout=True,
+                             squeeze=False)
+    for ax in axes.ravel()[len(columns):]:
+        ax.set_visible(False)  # no empty panel
+    for ax, (col, label, log) in zip(axes.ravel(), columns):
         stem = col.removesuffix("_rate")  # rates' intervals are <event>_low, _high
         lo_col, hi_col = f"{stem}_low", f"{stem}_high"
         xs = smooth[x].to_numpy(float)
@@ -169,5 +178,7 @@ def plot_sweep(settings, x: str, fixed: dict, columns=(
                       + ", ".join(f"{'σ' if k == 'sigma' else 'η'} = {v:g} m"
                                   for k, v in fixed.items()) + ")")
         ax.set_title(label, fontsize=9)
+        if col.endswith("_rate"):
+            ax.set_ylim(-0.05, 1.05)  # a share: the whole range, so 25 % looks like 25 %
     axes[0, 0].legend(frameon=False, fontsize=8)
     return fig

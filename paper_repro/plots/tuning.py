@@ -55,26 +55,45 @@ def plot_importances(imp):
 
 
 def plot_heldout(summary):
-    """Held-out comparison: completion rate and the median of each measure with 95 %
-    intervals, per set-up."""
+    """Held-out comparison, per set-up: the completion and collision rates, and the median of
+    each measure, with 95 % intervals. Set-ups that are one trial (the front's best on each
+    objective may be the same) share one column, labelled with every name."""
     import matplotlib.pyplot as plt
 
     setups = list(dict.fromkeys(summary.loc[summary["kind"] == "rate", "setup"]))
-    panels = [("completed", "completion rate")] + [(c, OBJECTIVES.get(c, c)) for c in
-                                                   HELDOUT_COLUMNS]
-    fig, axes = plt.subplots(1, len(panels), figsize=(3.0 * len(panels), 3.2))
+    columns = ["setup", "event", "measure", "rate", "median", "low", "high"]
+    same: dict[str, list[str]] = {}
+    for s in setups:  # group set-ups whose rows are identical (one trial under two names)
+        rows = summary.loc[summary["setup"] == s, columns[1:]].reset_index(drop=True)
+        twin = next((t for t in same if summary.loc[summary["setup"] == t, columns[1:]]
+                     .reset_index(drop=True).equals(rows)), None)
+        if twin is None:
+            same[s] = [s]
+        else:
+            same[twin].append(s)
+    shown = list(same)
+    names = [" =\n".join(n.replace("_", " ") for n in same[s]) for s in shown]
+    panels = ([("completed", "completion rate"), ("collision", "collision rate")]
+              + [(c, OBJECTIVES.get(c, c)) for c in HELDOUT_COLUMNS])
+    fig, axes = plt.subplots(1, len(panels), figsize=(2.8 * len(panels), 3.4))
     for ax, (col, label) in zip(axes, panels):
-        if col == "completed":
-            d = summary[(summary["kind"] == "rate") & (summary["event"] == "completed")]
+        if col in ("completed", "collision"):
+            d = summary[(summary["kind"] == "rate") & (summary["event"] == col)]
             mid = d.set_index("setup")["rate"]
+            ax.set_ylim(-0.05, 1.05)
         else:
             d = summary[(summary["kind"] == "median") & (summary["measure"] == col)]
             mid = d.set_index("setup")["median"]
-        d = d.set_index("setup").reindex(setups)
-        mid = mid.reindex(setups)
+        d = d.set_index("setup").reindex(shown)
+        mid = mid.reindex(shown)
         err = np.vstack([mid - d["low"], d["high"] - mid]).clip(min=0)
-        ax.errorbar(range(len(setups)), mid, yerr=np.nan_to_num(err), fmt="o", capsize=4)
-        ax.set_xticks(range(len(setups)), [s.replace("_", "\n") for s in setups], fontsize=8)
+        colour = "tab:red" if col == "collision" else "tab:blue"
+        ax.errorbar(range(len(shown)), mid, yerr=np.nan_to_num(err), fmt="o", capsize=4,
+                    color=colour)
+        ax.set_xticks(range(len(shown)), names, fontsize=7)
+        ax.set_xlim(-0.5, len(shown) - 0.5)
         ax.set_title(label if col != "min_clearance_m" else "min clearance, m", fontsize=9)
+    n = int(summary.loc[summary["kind"] == "rate", "n"].max())
+    fig.suptitle(f"held-out scenes ({n} per set-up), 95 % intervals", fontsize=10)
     fig.tight_layout()
     return fig

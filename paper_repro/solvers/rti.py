@@ -28,8 +28,8 @@ Four parts, one job each:
 * :class:`QPLayout`: where every variable, block and bound sits in the stage QP (pure index
   arithmetic; :meth:`QPLayout.dense` assembles the dense QP, for tests and for HPIPM).
 * :class:`QPChain`: the QP backends, the Riccati solver
-(:class:`~paper_repro.solvers.riccati_qp.StageQP`,
-  warm-started with the previous active set) first and HPIPM as its fallback, with counters.
+  (:class:`~paper_repro.solvers.riccati_qp.StageQP`, warm-started with the previous active
+  set) first and HPIPM as its fallback, with counters.
 
 :class:`RealTimeNMPC` is the thin SQP loop that joins them: up to ``max_iter`` steps per
 sampling instant, stopping early when the step is small, each step shortened by

@@ -259,7 +259,9 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
       ``table.parquet`` (+ ``table.csv`` when small), every column but :data:`TIMING_COLUMNS`,
       and ``study.json`` (the runs, their configurations, the golden hash);
     * what the machine determines: ``timings.csv`` (:data:`TIMING_COLUMNS` per run, by
-      ``name``) and ``timings.json`` (wall time, versions, commit, machine).
+      ``name``) and ``timings.json`` (wall time, versions, commit, machine). A call that flew
+      nothing (every run cached) keeps the ones already there: they record the flights, and
+      a re-run that only loads the cache would record the cache's speed as the study's.
 
     :func:`load_table` joins the two again."""
     from paper_repro.evidence.golden import golden_hash
@@ -270,7 +272,10 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
     _atomic(out / "table.parquet", lambda p: flight.to_parquet(p, index=False))
     if len(table) <= CSV_ROWS:
         _atomic(out / "table.csv", lambda p: flight.to_csv(p, index=False))
-    _atomic(out / "timings.csv", lambda p: table[["name", *timing]].to_csv(p, index=False))
+    flew = "simulated" not in table or bool(table["simulated"].fillna(False).any())
+    keep = not flew and (out / "timings.csv").is_file() and (out / "timings.json").is_file()
+    if not keep:
+        _atomic(out / "timings.csv", lambda p: table[["name", *timing]].to_csv(p, index=False))
     base = study.specs[0].config.to_dict()
     meta = {"name": study.name, "description": study.description,
             "runs": len(study.specs), "golden": golden_hash(), "base_config": base,
@@ -280,9 +285,10 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
                       for s in study.specs]}
     text = json.dumps(meta, indent=1, default=str) + "\n"
     _atomic(out / "study.json", lambda p: p.write_text(text))
-    machine = json.dumps({"wall_time_s": wall, "meta": run_metadata()}, indent=1,
-                         default=str) + "\n"
-    _atomic(out / "timings.json", lambda p: p.write_text(machine))
+    if not keep:
+        machine = json.dumps({"wall_time_s": wall, "meta": run_metadata()}, indent=1,
+                             default=str) + "\n"
+        _atomic(out / "timings.json", lambda p: p.write_text(machine))
 
 
 def _atomic(path: Path, write) -> None:

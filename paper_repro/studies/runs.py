@@ -150,7 +150,7 @@ def ensure_result(spec: RunSpec, results_dir=None, force: bool = False,
                   progress: bool | None = None, controller=None,
                   warn=None) -> tuple[Path, bool]:
     """The cache folder of ``spec``, flying the run first if it is missing, damaged (moved
-    aside with one warning line, :func:`usable_or_set_aside`) or ``force``d.
+    aside with one warning line, :func:`usable_or_set_aside`) or forced (``force``).
 
     Parameters
     ----------

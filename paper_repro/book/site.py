@@ -1,0 +1,117 @@
+"""The book: the pages of ``docs/`` and the executed notebooks, one HTML site.
+
+    python -m paper_repro book             # after reproduce, the study commands and tune
+    python -m paper_repro book --quick     # from their --quick runs (notebooks/executed/quick/)
+
+:func:`build` stages one Sphinx source folder, ``build/book/src``: the pages of ``docs/``,
+every notebook as ``reproduce``, ``study`` or ``tune`` executed it (outputs included) under
+``notebooks/``, the committed figures under ``figures/`` and MathJax (so that the formulas
+render without a network). It then runs Sphinx (myst-nb
+reads the notebooks, the book theme draws the site) with warnings as errors into
+``build/book/html``. Nothing is executed: a notebook that has not been executed is named
+with the command that executes it, before Sphinx starts.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from paper_repro import paths
+from paper_repro.studies.catalogue import STUDY_NOTEBOOKS
+from paper_repro.studies.reproduce import NOTEBOOKS
+
+FIGURE_SUFFIXES = (".png", ".gif", ".svg")
+"""What of ``figures/`` the pages may show (the PDFs, tables and arrays stay out)."""
+
+MATHJAX = "tex-svg-full.js"
+"""MathJax 3, SVG output with every TeX extension, one file: what the pages typeset with."""
+
+
+def mathjax_file() -> Path:
+    """MathJax as the django-static-mathjax package ships it (the ``book`` extra)."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("mathjax")
+    path = (Path(spec.submodule_search_locations[0]) / "static" / "mathjax" / "es5" / MATHJAX
+            if spec is not None and spec.submodule_search_locations else None)
+    if path is None or not path.is_file():
+        raise ValueError("the book needs MathJax from the django-static-mathjax package: "
+                         'python -m pip install -e ".[book]" -c constraints.txt')
+    return path
+
+
+def docs_dir() -> Path:
+    """``docs/``: the book's pages and its Sphinx configuration."""
+    return paths.repo_root() / "docs"
+
+
+def book_dir() -> Path:
+    """``build/book/`` (git-ignored): the staged sources and the site."""
+    return paths.repo_root() / "build" / "book"
+
+
+def executing_command(notebook: str, quick: bool = False) -> str:
+    """The command that executes ``notebook`` into ``notebooks/executed/`` (``quick``: into
+    its ``quick/`` folder)."""
+    flag = " --quick" if quick else ""
+    if notebook in {nb.name for nb in NOTEBOOKS}:
+        return f"python -m paper_repro reproduce{flag}"
+    study = {nb: name for name, nb in STUDY_NOTEBOOKS.items()}.get(notebook)
+    if study is not None:
+        return f"python -m paper_repro study {study}{flag}"
+    return f"python -m paper_repro tune{flag}"
+
+
+def notebook_names() -> list[str]:
+    """Every notebook of ``notebooks/``, by name."""
+    return sorted(p.stem for p in paths.notebooks_dir().glob("*.ipynb"))
+
+
+def stage(executed: Path, src: Path, quick: bool = False) -> Path:
+    """Copy the pages, the executed notebooks and the figures into ``src`` (emptied first).
+    Raises ``ValueError`` naming every notebook missing from ``executed`` and the command
+    that executes it."""
+    missing = [n for n in notebook_names() if not (executed / f"{n}.ipynb").is_file()]
+    if missing:
+        lines = [f"  {n}: {executing_command(n, quick)}" for n in missing]
+        raise ValueError(f"the book shows executed notebooks, and {executed} lacks "
+                         f"{len(missing)} of them; execute them first:\n" + "\n".join(lines))
+    if src.exists():
+        shutil.rmtree(src)
+    shutil.copytree(docs_dir(), src, ignore=shutil.ignore_patterns("_build", "generated"))
+    (src / "_static_book" / "mathjax").mkdir(parents=True, exist_ok=True)
+    shutil.copy2(mathjax_file(), src / "_static_book" / "mathjax" / MATHJAX)
+    (src / "notebooks").mkdir()
+    for name in notebook_names():
+        shutil.copy2(executed / f"{name}.ipynb", src / "notebooks" / f"{name}.ipynb")
+    figures = paths.figures_dir()
+    for path in sorted(figures.rglob("*")):
+        rel = path.relative_to(figures)
+        if path.suffix in FIGURE_SUFFIXES and rel.parts[0] != "quick":
+            (src / "figures" / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(path, src / "figures" / rel)
+    return src
+
+
+def build(quick: bool = False, executed: Path | None = None, out: Path | None = None,
+          log=print) -> Path:
+    """Stage and build the site; returns its ``index.html``. ``executed``: where the executed
+    notebooks are (default :func:`paper_repro.paths.executed_dir`); ``out``: the book's
+    folder (default :func:`book_dir`). Sphinx's warnings are errors: a ``RuntimeError``
+    carries its output."""
+    executed = Path(executed) if executed is not None else paths.executed_dir(quick)
+    out = Path(out) if out is not None else book_dir()
+    src = stage(executed, out / "src", quick)
+    html = out / "html"
+    log(f"book: {len(notebook_names())} notebooks from {executed}; building {html}")
+    proc = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q",
+                           "-b", "html", str(src), str(html)],
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"sphinx-build failed ({proc.returncode}):\n{proc.stderr[-8000:]}")
+    index = html / "index.html"
+    log(f"book: {index}")
+    return index

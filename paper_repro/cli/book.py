@@ -1,0 +1,25 @@
+"""``python -m paper_repro book``: the HTML book from ``docs/`` and the executed notebooks."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from paper_repro.book.site import build
+
+HELP = ("build the HTML book from docs/ and the executed notebooks (build/book/html; "
+        "executes nothing)")
+
+
+def main(args) -> int:
+    """``python -m paper_repro book [--quick] [--executed DIR] [--out DIR]``."""
+    build(quick=args.quick, executed=args.executed, out=args.out)
+    return 0
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--quick", action="store_true",
+                        help="from the --quick runs' notebooks (notebooks/executed/quick/)")
+    parser.add_argument("--executed", type=Path, default=None,
+                        help="folder of the executed notebooks (default notebooks/executed/)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="the book's folder (default build/book/)")

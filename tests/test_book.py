@@ -1,0 +1,51 @@
+"""The book's builder: what it stages, and what it refuses before Sphinx starts. (The build
+itself runs in tests/test_notebooks.py, from the notebooks those tests execute.)"""
+
+import re
+
+import pytest
+
+from paper_repro.book import site
+from paper_repro.studies.catalogue import STUDY_NOTEBOOKS
+
+
+def test_a_missing_notebook_is_named_with_the_command_that_executes_it(tmp_path):
+    with pytest.raises(ValueError) as info:
+        site.stage(tmp_path / "executed", tmp_path / "src", quick=True)
+    message = str(info.value)
+    for name in site.notebook_names():
+        assert f"  {name}: python -m paper_repro " in message
+    assert "03_thrusts: python -m paper_repro reproduce --quick" in message
+    for study, notebook in STUDY_NOTEBOOKS.items():
+        assert f"{notebook}: python -m paper_repro study {study} --quick" in message
+    assert "12_tuning: python -m paper_repro tune --quick" in message
+    assert not (tmp_path / "src").exists()  # nothing staged
+
+
+def test_every_notebook_and_every_page_is_in_a_table_of_contents():
+    docs = site.docs_dir()
+    pages = sorted(p for p in docs.rglob("*.md"))
+    tocs = "\n".join(m for p in pages
+                     for m in re.findall(r"```\{toctree\}(.*?)```", p.read_text(), re.S))
+    entries = {line.strip().removeprefix("../") for line in tocs.splitlines()}
+    for name in site.notebook_names():
+        assert f"notebooks/{name}" in entries, f"{name} is in no toctree of docs/"
+    for page in pages:
+        rel = page.relative_to(docs).with_suffix("").as_posix()
+        if rel == "index":
+            continue
+        leaf = rel.split("/")[-1]
+        assert rel in entries or leaf in entries, f"docs/{rel}.md is in no toctree"
+
+
+def test_mathjax_is_staged_with_the_pages(tmp_path):
+    executed = tmp_path / "executed"
+    executed.mkdir()
+    for name in site.notebook_names():  # stand-ins: staging copies, it executes nothing
+        (executed / f"{name}.ipynb").write_text("{}")
+    src = site.stage(executed, tmp_path / "src")
+    assert (src / "_static_book" / "mathjax" / site.MATHJAX).stat().st_size > 1e6
+    assert (src / "conf.py").is_file() and (src / "index.md").is_file()
+    assert sorted(p.stem for p in (src / "notebooks").glob("*.ipynb")) == site.notebook_names()
+    assert (src / "figures" / "fig04_thrusts.png").is_file()
+    assert not list((src / "figures").rglob("*.pdf"))
