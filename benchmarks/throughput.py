@@ -19,6 +19,17 @@ logging, the loop itself). The last line is JSON with ``steps_per_core_s`` (one 
 end), ``parallel_efficiency`` (= the latter / 2 / the former), ``all_in_ms_per_step``,
 ``plant_ms_per_step`` and ``controller_ms_per_step`` (one worker).
 
+Then, one process, the scene families of the studies (``--families``): the paper mission
+(``--steps`` steps), random passages (the first ``--passages`` of ``monte_carlo``) and random
+crossings (the first ``--crossings`` of ``moving_obstacles`` with the oracle prediction and
+the damped RTI they fly), each with both metrics. Per family and metric: runs, steps, all-in
+steps per second and ms per step, and the controller call's median, p99, p99.9 and max
+against T_s. The JSON line gains ``families`` (one entry per row).
+
+``--save`` writes both tables to ``figures/throughput/`` (``parallel.csv``, ``families.csv``:
+this machine's times, expected to change), then the stamp; ``environment.md`` formats its
+throughput section from them and from ``benchmarks/profile_step.py``'s profile.
+
 Numbers only, no thresholds: on a shared machine they move by tens of percent between runs.
 """
 
@@ -29,7 +40,9 @@ import dataclasses
 import json
 import multiprocessing as mp
 import os
+import sys
 import time
+from pathlib import Path
 
 # One core per flight: BLAS threads would compete with the other worker (set before NumPy
 # loads; spawned workers inherit it).
@@ -37,13 +50,14 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
 
 from paper_repro import Config
-from paper_repro.sim import loop as sim_module
+from paper_repro.paths import figures_dir
 from paper_repro.sim.loop import simulate
-from paper_repro.sim.plant import Plant
+from paper_repro.sim.plant import Plant, plant_for
 from paper_repro.solvers.factory import make_controller
-from paper_repro.vehicles.quadrotor import plant_step
+from paper_repro.vehicles.quadrotor import quadrotor_model
 
 WARMUP_STEPS = 50
 
@@ -56,9 +70,17 @@ def main() -> None:
     parser.add_argument("--scenario", default="paper", choices=("paper", "encounter"))
     parser.add_argument("--workers", type=int, default=2,
                         help="concurrent flights of the parallel run (default 2)")
+    parser.add_argument("--families", nargs="*", default=list(FAMILIES), choices=list(FAMILIES),
+                        help="scene families flown after the parallel run (default: all)")
+    parser.add_argument("--passages", type=int, default=20,
+                        help="random passages per metric (default 20)")
+    parser.add_argument("--crossings", type=int, default=5,
+                        help="random crossings per metric (default 5)")
+    parser.add_argument("--save", action="store_true",
+                        help="write figures/throughput/ (this machine's times) and its stamp")
     args = parser.parse_args()
-    if args.steps < 1 or args.workers < 1:
-        parser.error("--steps and --workers must be >= 1")
+    if min(args.steps, args.workers, args.passages, args.crossings) < 1:
+        parser.error("--steps, --workers, --passages and --crossings must be >= 1")
 
     cfg = _config(args.scenario)
     ctl = _warm_controller(cfg)  # also fills the compile caches the workers will load from
@@ -101,6 +123,26 @@ def main() -> None:
             r["run"], r["steps"], r["wall"], r["steps_per_s"], r["ms"], r["cpu_ms"],
             r["plant_ms"], r["controller_ms"], r["rest_ms"]))
     together = total / span
+    families = [row for name in args.families
+                for row in FAMILIES[name](args.steps, args.passages, args.crossings)]
+    cluster = None
+    if families:
+        print_families(families)
+        cluster = cluster_cost(families)
+        print("# a 10,000-scene Monte Carlo (x 2 metrics) at this speed: "
+              + ", ".join(f"{k} {v:,.4g}" for k, v in cluster.items()))
+    if args.save:
+        from paper_repro.evidence.golden import stamp
+
+        out = figures_dir() / "throughput"
+        out.mkdir(parents=True, exist_ok=True)
+        pd.DataFrame(rows).assign(scenario=args.scenario).to_csv(
+            out / "parallel.csv", index=False, float_format="%.4g")
+        pd.DataFrame(families).to_csv(out / "families.csv", index=False, float_format="%.4g")
+        if cluster is not None:
+            pd.DataFrame([cluster]).to_csv(out / "cluster.csv", index=False,
+                                           float_format="%.4g")
+        stamp(out, " ".join(["python", "benchmarks/throughput.py", *sys.argv[1:]]))
     print(json.dumps({
         "steps_per_core_s": round(one["steps_per_s"], 1),
         "steps_per_s_2_workers": round(together, 1),
@@ -108,7 +150,107 @@ def main() -> None:
         "all_in_ms_per_step": round(one["ms"], 4),
         "plant_ms_per_step": round(plant_ms, 4),
         "controller_ms_per_step": round(one["controller_ms"], 4),
+        "families": families,
     }))
+
+
+# --- the scene families ------------------------------------------------------------------------
+
+def _fly_family(family: str, metric: str, specs) -> dict:
+    """Fly ``specs`` (RunSpecs of one configuration but the scene) in this process with one
+    controller, reset before each flight; the row of the families table."""
+    ctl = _warm_controller(specs[0].config)
+    steps, wall, solve = 0, 0.0, []
+    for spec in specs:
+        ctl.reset()
+        t0 = time.perf_counter()
+        r = simulate(spec.config, controller=ctl, max_steps=spec.max_steps, progress=False)
+        wall += r.meta.get("wall_time_s", time.perf_counter() - t0)
+        steps += r.steps
+        solve.append(np.asarray(r.solve_time) * 1e3)
+    ms = np.concatenate(solve)
+    ts_ms = specs[0].config.nmpc.ts * 1e3
+    return {"family": family, "metric": metric, "runs": len(specs), "steps": steps,
+            "steps_per_s": steps / wall, "all_in_ms": wall / steps * 1e3,
+            "controller_ms": float(ms.mean()), "median_ms": float(np.median(ms)),
+            "p99_ms": float(np.percentile(ms, 99)), "p999_ms": float(np.percentile(ms, 99.9)),
+            "max_ms": float(ms.max()), "over_ts": int(np.sum(ms > ts_ms)), "ts_ms": ts_ms}
+
+
+def _paper_family(steps: int, passages: int, crossings: int) -> list[dict]:
+    from paper_repro.studies.runs import RunSpec
+
+    out = []
+    for metric in ("smooth", "euclidean"):
+        base = Config()
+        cfg = dataclasses.replace(base, distance=dataclasses.replace(base.distance,
+                                                                     metric=metric))
+        out.append(_fly_family("paper mission", metric, [RunSpec(f"paper-{metric}", cfg,
+                                                                 steps)]))
+    return out
+
+
+def _passage_family(steps: int, passages: int, crossings: int) -> list[dict]:
+    from paper_repro.studies.catalogue import make_study
+
+    specs = make_study("monte_carlo", scenes=passages).specs
+    return [_fly_family("random passages", m, [s for s in specs
+                                               if s.config.distance.metric == m])
+            for m in ("smooth", "euclidean")]
+
+
+def _crossing_family(steps: int, passages: int, crossings: int) -> list[dict]:
+    from paper_repro.studies.catalogue import make_study
+
+    specs = [s for s in make_study("moving_obstacles", scenes=crossings).specs
+             if s.config.simulation.prediction == "oracle"]
+    return [_fly_family("random crossings (oracle)", m,
+                        [s for s in specs if s.config.distance.metric == m])
+            for m in ("smooth", "euclidean")]
+
+
+def cluster_cost(families: list[dict], scenes: int = 10_000) -> dict:
+    """What ``scenes`` random passages per metric cost on a cluster at the measured speed:
+    core-hours (mean steps per passage × all-in ms per step, both metrics), the resident
+    memory of this process (a single-threaded worker holds the same: CasADi, the compiled
+    libraries, its controllers) and the size of one saved result."""
+    import resource
+    import tempfile
+
+    from paper_repro.studies.catalogue import make_study
+
+    passages = [r for r in families if r["family"] == "random passages"]
+    if not passages:
+        return {}
+    seconds = sum(r["steps"] / r["runs"] * r["all_in_ms"] * 1e-3 for r in passages)
+    spec = make_study("monte_carlo", scenes=1).specs[0]
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp) / "run"
+        simulate(spec.config, max_steps=spec.max_steps, progress=False).save(folder)
+        result_mb = sum(f.stat().st_size for f in folder.iterdir()) / 1e6
+    return {"scenes_per_metric": scenes,
+            "steps_per_passage": sum(r["steps"] for r in passages)
+            / sum(r["runs"] for r in passages),
+            "core_hours": seconds * scenes / 3600,
+            "worker_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3,
+            "result_mb_per_run": result_mb,
+            "results_gb": result_mb * scenes * len(passages) / 1e3}
+
+
+FAMILIES = {"paper": _paper_family, "passages": _passage_family, "crossings": _crossing_family}
+
+
+def print_families(rows: list[dict]) -> None:
+    print("# scene families, one process: all-in steps/s and the controller call (ms) "
+          "against T_s")
+    header = ("family", "metric", "runs", "steps", "steps/s", "ms/step", "median", "p99",
+              "p99.9", "max", "> T_s")
+    print("{:<27}{:>10}{:>6}{:>9}{:>9}{:>9}{:>8}{:>8}{:>8}{:>8}{:>7}".format(*header))
+    for r in rows:
+        print("{:<27}{:>10}{:>6d}{:>9d}{:>9.0f}{:>9.3f}{:>8.3f}{:>8.3f}{:>8.3f}{:>8.2f}{:>7d}"
+              .format(r["family"], r["metric"], r["runs"], r["steps"], r["steps_per_s"],
+                      r["all_in_ms"], r["median_ms"], r["p99_ms"], r["p999_ms"], r["max_ms"],
+                      r["over_ts"]))
 
 
 def _config(scenario: str) -> Config:
@@ -140,22 +282,16 @@ def _worker(scenario: str, steps: int, barrier, queue) -> None:
 
 
 def _plant_cost(result, cfg: Config):
-    """ms per step of the integrator ``simulate`` uses, replaying the flight's logged states
-    and inputs, and the largest deviation of the replay from the logged next states (m)."""
-    ts, params = cfg.nmpc.ts, cfg.quadrotor
-    if hasattr(sim_module, "Plant"):
-        plant = Plant(params, ts)
-        step = plant.step
-        name = "Plant, compiled DP45" if plant.native else "Plant, solve_ivp fallback"
-    else:
-        def step(x, u):
-            return plant_step(x, u, ts, params)
-        name = "model.plant_step (solve_ivp)"
+    """ms per step of the integrator ``simulate`` uses (:func:`paper_repro.sim.plant.plant_for`),
+    replaying the flight's logged states and inputs, and the largest deviation of the replay
+    from the logged next states (m)."""
+    plant = plant_for(quadrotor_model(cfg), cfg)
+    name = type(plant).__name__ + (", compiled DP45" if getattr(plant, "native", False) else "")
     x, u = result.x, result.u
     out = []
     t0 = time.perf_counter()
     for k in range(len(u)):
-        out.append(step(x[k], u[k]))
+        out.append(plant.step(x[k], u[k]))
     elapsed = time.perf_counter() - t0
     error = float(np.max(np.abs(np.array(out)[:, :3] - x[1:len(u) + 1, :3])))
     return name, elapsed / len(u) * 1e3, error

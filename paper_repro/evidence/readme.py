@@ -294,8 +294,57 @@ def regeneration() -> str:
     return markdown_table(["evidence set", "made by", "wall time (2 cores, last run)"], rows)
 
 
+def throughput() -> str:
+    """``figures/throughput/``: all-in steps per second per scene family and metric, the
+    controller call's tail against T_s, the parallel run, the sampled profile and the floor."""
+    folder = paths.figures_dir() / "throughput"
+    fam = pd.read_csv(folder / "families.csv")
+    par = pd.read_csv(folder / "parallel.csv").set_index("run")
+    rows = [[r.family, "smoothed D" if r.metric == "smooth" else "Euclidean ½d²", f"{r.runs}",
+             f"{r.steps:,}", f"{r.steps_per_s:,.0f}", f"{r.all_in_ms:.3f}",
+             f"{r.median_ms:.2f} / {r.p99_ms:.2f} / {r.p999_ms:.2f} / {r.max_ms:.1f}",
+             f"{r.over_ts:,} of {r.steps:,}"] for r in fam.itertuples()]
+    out = markdown_table(["scene family", "metric", "runs", "steps", "all-in steps/s",
+                          "ms per step", "controller call, median / p99 / p99.9 / max ms",
+                          "calls over T_s"], rows)
+    one = par.loc["1 worker"]
+    both = par[par.index.str.endswith("together")].iloc[0]
+    out += (f"\n\nThe paper mission, {one.steps:,} steps on one core: {one.steps_per_s:,.0f} "
+            f"steps/s all-in ({one.ms:.3f} ms a step: controller {one.controller_ms:.3f}, plant "
+            f"{one.plant_ms:.3f}, the rest {one.rest_ms:.3f}); two workers together "
+            f"{both.steps_per_s:,.0f} steps/s, {both.steps_per_s / one.steps_per_s:.2f}× one.")
+    if (folder / "cluster.csv").is_file():
+        c = pd.read_csv(folder / "cluster.csv").iloc[0]
+        out += (f"\n\nA {c.scenes_per_metric:,.0f}-scene Monte Carlo (both metrics, "
+                f"{c.steps_per_passage:,.0f} steps a passage on average) at this speed: "
+                f"{c.core_hours:,.0f} core-hours; {c.worker_rss_mb:,.0f} MB resident per "
+                f"single-threaded worker; {c.result_mb_per_run:.2f} MB per saved run, "
+                f"{c.results_gb:,.1f} GB of results.")
+    prof = folder / "profile"
+    if (prof / "profile.csv").is_file():
+        parts = pd.read_csv(prof / "profile.csv")
+        floor = pd.read_csv(prof / "floor.csv").set_index("part")["ms_per_call"]
+        out += "\n\n" + markdown_table(
+            ["part of a step (sampled)", "share", "ms per step"],
+            [[r.part, f"{100 * r.share:.1f} %", f"{r.ms_per_step:.4f}"]
+             for r in parts.itertuples()])
+        what = pd.read_csv(prof / "floor.csv").set_index("part")["what"]
+        share = parts.set_index("part")["ms_per_step"]
+        compiled = share[["QP (C)", "linearisation (C)", "LiDAR", "plant"]].sum()
+        step = float(parts["all_in_ms"].iloc[0])
+        out += ("\n\n" + markdown_table(["floor of a part, one call", "ms", "at"],
+                                          [[k, f"{v:.4f}", what[k]] for k, v in floor.items()])
+                + f"\n\nOn average over the profiled steps the compiled parts (the QP and the "
+                f"linearisation in C, the LiDAR's KD-tree, the plant) take {compiled:.3f} ms a "
+                f"step: the floor of this algorithm, {1e3 / compiled:,.0f} steps/s. The rest, "
+                f"{step - compiled:.3f} ms of the profiled {step:.3f} ms, is Python. At a step "
+                f"with a region close (the floor table) one linearisation and one QP alone take "
+                f"{floor['linearisation (C)'] + floor['QP']:.3f} ms.")
+    return out
+
+
 MACHINE_BLOCKS = frozenset({"regeneration", "ground_robot", "solver_speed_encounter",
-                            "solver_speed_crossing"})
+                            "solver_speed_crossing", "throughput"})
 """Blocks quoting what the machine measured: rendered like the others, never asserted (they
 change with every regeneration)."""
 
@@ -304,6 +353,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "summary": summary, "fidelity": fidelity, "ground_robot": ground_robot,
     "solver_speed_encounter": lambda: solver_speed("encounter"),
     "solver_speed_crossing": lambda: solver_speed("crossing"),
+    "throughput": throughput,
     "monte_carlo": monte_carlo,
     "eta_sweep": eta_sweep, "sensor_noise": sensor_noise, "sensing_window": sensing_window,
     "moving_obstacles": moving_obstacles, "timeline": timeline, "tuning": tuning}
@@ -338,9 +388,11 @@ def readme_path() -> Path:
 
 
 def page_paths() -> list[Path]:
-    """Every page that may hold blocks: the README, then the book's pages in ``docs/``."""
+    """Every page that may hold blocks: the README, ``environment.md``, then the book's pages
+    in ``docs/``."""
     docs = paths.repo_root() / "docs"
-    return [readme_path(), *sorted(p for p in docs.rglob("*.md") if "_build" not in p.parts)]
+    return [readme_path(), paths.repo_root() / "environment.md",
+            *sorted(p for p in docs.rglob("*.md") if "_build" not in p.parts)]
 
 
 def page_blocks() -> dict[str, tuple[Path, str]]:
