@@ -134,6 +134,35 @@ def test_padding_leaves_the_barrier_unchanged():
             assert value == pytest.approx(exact - 1.0, rel=1e-12, abs=1e-12)
 
 
+@pytest.mark.parametrize("metric", ["smooth", "euclidean"])
+@pytest.mark.parametrize("moving", [False, True])
+def test_an_unused_slot_is_one_inactive_dummy_point_however_often_it_is_packed(metric, moving):
+    """The block of a slot no region fills is made once per layout: packing it again, around
+    scans that fill other slots, gives the same numbers and leaves it unchanged."""
+    layout = ScanLayout(metric, 0.3, 0.8, 1.0, slots=3, capacity=8, moving=moving)
+    per_slot = layout.size // 3
+    rng = np.random.default_rng(2)
+    first = None
+    for _ in range(3):
+        cloud = rng.normal(size=(5, 3)) + 2.0
+        velocity = [rng.normal(size=3)] if moving else None
+        packed = layout.pack([cloud], np.zeros(3), velocity)
+        unused = packed[per_slot:].reshape(2, per_slot)
+        assert np.array_equal(unused[0], unused[1])
+        first = unused[0].copy() if first is None else first
+        assert np.array_equal(unused[0], first)
+    points = first[:8 * 3].reshape(3, 8).T  # column-major (capacity, p)
+    assert np.all(points == 1e3)
+    weights = first[8 * 3:8 * 4]
+    if metric == "smooth":  # ln W: the dummy point 0, the padding −1e30; then ln V, active
+        assert weights[0] == 0.0 and np.all(weights[1:] == PAD_LOG_WEIGHT)
+        assert list(first[8 * 4:8 * 4 + 2]) == [0.0, 0.0]
+    else:  # the mask: the dummy point only; then active
+        assert weights[0] == 1.0 and np.all(weights[1:] == 0.0) and first[8 * 4] == 0.0
+    if moving:
+        assert np.all(first[-3:] == 0.0)
+
+
 # --- the QP layout --------------------------------------------------------------------------------
 
 def _random_blocks(layout, rng):

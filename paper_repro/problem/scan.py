@@ -4,6 +4,7 @@ number of points, and the one accepted form of a scan."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -67,6 +68,20 @@ class ScanLayout:
     def with_capacity(self, capacity: int) -> ScanLayout:
         return dataclasses.replace(self, capacity=capacity)
 
+    @functools.cached_property
+    def _unused_slot(self) -> np.ndarray:
+        """The parameters of a region slot no region fills: one dummy point far away, active
+        = 0 (the same block wherever the vehicle is, so made once)."""
+        cap, dim = self.capacity, self.dim
+        pts = np.full((cap, dim), _FAR_AWAY)
+        log_w = np.full(cap, PAD_LOG_WEIGHT)
+        mask = np.zeros(cap)
+        log_w[0], mask[0] = 0.0, 1.0
+        tail = [np.zeros(dim)] if self.moving else []
+        if self.metric == "smooth":
+            return np.concatenate([pts.ravel(order="F"), log_w, [0.0, 0.0], *tail])
+        return np.concatenate([pts.ravel(order="F"), mask, [0.0], *tail])
+
     def pack(self, visible: Sequence[np.ndarray], position, velocities=None) -> np.ndarray:
         """Pack a LiDAR scan into the parameter layout.
 
@@ -114,23 +129,21 @@ class ScanLayout:
             seen = [seen[i] for i in order]
         blocks = []
         for slot in range(slots):
+            if slot >= len(seen):
+                blocks.append(self._unused_slot)
+                continue
             pts = np.full((cap, dim), _FAR_AWAY)
             log_w = np.full(cap, PAD_LOG_WEIGHT)
             mask = np.zeros(cap)
-            velocity = np.zeros(dim)
-            if slot < len(seen):
-                cloud, sq, log_p, velocity = seen[slot]
-                weights = dist.CloudWeights.from_cloud(cloud, self.sigma, log_p)
-                keep = np.arange(len(cloud))
-                if len(cloud) > cap:
-                    keep = np.sort(np.argsort(sq)[:cap])
-                pts[: len(keep)] = cloud[keep]
-                log_w[: len(keep)] = weights.log_weights[keep]
-                mask[: len(keep)] = 1.0
-                log_v, active = weights.log_volume, 1.0
-            else:
-                log_w[0], mask[0] = 0.0, 1.0
-                log_v, active = 0.0, 0.0
+            cloud, sq, log_p, velocity = seen[slot]
+            weights = dist.CloudWeights.from_cloud(cloud, self.sigma, log_p)
+            keep = np.arange(len(cloud))
+            if len(cloud) > cap:
+                keep = np.sort(np.argsort(sq)[:cap])
+            pts[: len(keep)] = cloud[keep]
+            log_w[: len(keep)] = weights.log_weights[keep]
+            mask[: len(keep)] = 1.0
+            log_v, active = weights.log_volume, 1.0
             tail = [velocity] if self.moving else []
             if self.metric == "smooth":
                 blocks.append(np.concatenate([pts.ravel(order="F"), log_w, [log_v, active],
