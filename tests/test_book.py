@@ -38,6 +38,21 @@ def test_every_notebook_and_every_page_is_in_a_table_of_contents():
         assert rel in entries or leaf in entries, f"docs/{rel}.md is in no toctree"
 
 
+def test_without_strict_a_missing_notebook_is_its_source_saying_so(tmp_path):
+    executed = tmp_path / "executed"
+    executed.mkdir()
+    lines = []
+    src = site.stage(executed, tmp_path / "src", strict=False, log=lines.append)
+    assert len(lines) == 1 and f"{len(site.notebook_names())} notebook(s)" in lines[0]
+    import nbformat
+
+    nb = nbformat.read(src / "notebooks" / "03_thrusts.ipynb", as_version=4)
+    assert nb.cells[0].source.startswith("# ")
+    assert "**Not executed on this machine**: `python -m paper_repro reproduce` runs it" in \
+        nb.cells[0].source
+    assert all(c.outputs == [] for c in nb.cells if c.cell_type == "code")
+
+
 def test_mathjax_is_staged_with_the_pages(tmp_path):
     executed = tmp_path / "executed"
     executed.mkdir()

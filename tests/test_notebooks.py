@@ -278,7 +278,8 @@ def test_the_book_builds_from_the_quick_run(executed_copies, tmp_path):
     it fails naming the notebooks that were not executed and the command for each."""
     from paper_repro.book.site import build, notebook_names
 
-    index = build(quick=True, executed=executed_copies, out=tmp_path / "book", log=lambda _: None)
+    index = build(quick=True, executed=executed_copies, out=tmp_path / "book", log=lambda _: None,
+                  strict=True)
     html = index.parent
     for name in notebook_names():
         page = (html / "notebooks" / f"{name}.html").read_text()

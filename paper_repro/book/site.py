@@ -70,15 +70,23 @@ def notebook_names() -> list[str]:
     return sorted(p.stem for p in paths.notebooks_dir().glob("*.ipynb"))
 
 
-def stage(executed: Path, src: Path, quick: bool = False) -> Path:
+def stage(executed: Path, src: Path, quick: bool = False, strict: bool = True,
+          log=print) -> Path:
     """Copy the pages, the executed notebooks and the figures into ``src`` (emptied first).
-    Raises ``ValueError`` naming every notebook missing from ``executed`` and the command
-    that executes it."""
+
+    A notebook missing from ``executed``: with ``strict``, a ``ValueError`` naming every
+    missing one and the command that executes it, before anything is copied; without, its
+    source (no outputs) under a first cell that says so and names that command, and one
+    ``log`` line listing them (a first look at the book after ``reproduce`` alone: the study
+    commands take far longer)."""
     missing = [n for n in notebook_names() if not (executed / f"{n}.ipynb").is_file()]
-    if missing:
-        lines = [f"  {n}: {executing_command(n, quick)}" for n in missing]
+    lines = [f"  {n}: {executing_command(n, quick)}" for n in missing]
+    if missing and strict:
         raise ValueError(f"the book shows executed notebooks, and {executed} lacks "
                          f"{len(missing)} of them; execute them first:\n" + "\n".join(lines))
+    if missing:
+        log(f"book: {len(missing)} notebook(s) not executed, shown without outputs:\n"
+            + "\n".join(lines))
     if src.exists():
         shutil.rmtree(src)
     shutil.copytree(docs_dir(), src, ignore=shutil.ignore_patterns("_build", "generated"))
@@ -86,7 +94,11 @@ def stage(executed: Path, src: Path, quick: bool = False) -> Path:
     shutil.copy2(mathjax_file(), src / "_static_book" / "mathjax" / MATHJAX)
     (src / "notebooks").mkdir()
     for name in notebook_names():
-        shutil.copy2(executed / f"{name}.ipynb", src / "notebooks" / f"{name}.ipynb")
+        if name in missing:
+            _stage_unexecuted(name, src / "notebooks" / f"{name}.ipynb",
+                              executing_command(name, quick))
+        else:
+            shutil.copy2(executed / f"{name}.ipynb", src / "notebooks" / f"{name}.ipynb")
     figures = paths.figures_dir()
     for path in sorted(figures.rglob("*")):
         rel = path.relative_to(figures)
@@ -96,15 +108,39 @@ def stage(executed: Path, src: Path, quick: bool = False) -> Path:
     return src
 
 
+def _stage_unexecuted(name: str, out: Path, command: str) -> None:
+    """The source of notebook ``name`` under a first cell saying it was not executed."""
+    import nbformat
+
+    nb = nbformat.read(paths.notebooks_dir() / f"{name}.ipynb", as_version=4)
+    title, rest = (nb.cells[0].source.split("\n", 1) + [""])[:2]
+    nb.cells[0].source = (f"{title}\n\n**Not executed on this machine**: `{command}` runs "
+                          f"it; this page shows its code without outputs.\n{rest}")
+    nbformat.write(nb, out)
+
+
+def _require_book_stack() -> None:
+    """The ``book`` extra, checked before anything is staged."""
+    import importlib.util
+
+    absent = [m for m in ("sphinx", "myst_nb", "sphinx_book_theme")
+              if importlib.util.find_spec(m) is None]
+    if absent:
+        raise ValueError(f"the book needs {', '.join(absent)}: "
+                         'python -m pip install -e ".[book]" -c constraints.txt')
+
+
 def build(quick: bool = False, executed: Path | None = None, out: Path | None = None,
-          log=print) -> Path:
+          log=print, strict: bool = False) -> Path:
     """Stage and build the site; returns its ``index.html``. ``executed``: where the executed
     notebooks are (default :func:`paper_repro.paths.executed_dir`); ``out``: the book's
-    folder (default :func:`book_dir`). Sphinx's warnings are errors: a ``RuntimeError``
-    carries its output."""
+    folder (default :func:`book_dir`); ``strict``: refuse to build without every notebook
+    executed (see :func:`stage`). Sphinx's warnings are errors: a ``RuntimeError`` carries
+    its output."""
+    _require_book_stack()
     executed = Path(executed) if executed is not None else paths.executed_dir(quick)
     out = Path(out) if out is not None else book_dir()
-    src = stage(executed, out / "src", quick)
+    src = stage(executed, out / "src", quick, strict=strict, log=log)
     html = out / "html"
     log(f"book: {len(notebook_names())} notebooks from {executed}; building {html}")
     proc = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q",

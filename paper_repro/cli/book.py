@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from paper_repro.book.site import build
@@ -11,14 +12,21 @@ HELP = ("build the HTML book from docs/ and the executed notebooks (build/book/h
 
 
 def main(args) -> int:
-    """``python -m paper_repro book [--quick] [--executed DIR] [--out DIR]``."""
-    build(quick=args.quick, executed=args.executed, out=args.out)
+    """``python -m paper_repro book [--quick] [--strict] [--executed DIR] [--out DIR]``."""
+    try:
+        build(quick=args.quick, executed=args.executed, out=args.out, strict=args.strict)
+    except RuntimeError as exc:  # Sphinx's own report: printed whole, no traceback
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
     return 0
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("--quick", action="store_true",
                         help="from the --quick runs' notebooks (notebooks/executed/quick/)")
+    parser.add_argument("--strict", action="store_true",
+                        help="refuse to build unless every notebook has been executed "
+                             "(default: a notebook not executed is shown without outputs)")
     parser.add_argument("--executed", type=Path, default=None,
                         help="folder of the executed notebooks (default notebooks/executed/)")
     parser.add_argument("--out", type=Path, default=None,

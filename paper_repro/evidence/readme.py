@@ -323,12 +323,12 @@ def throughput() -> str:
     prof = folder / "profile"
     if (prof / "profile.csv").is_file():
         parts = pd.read_csv(prof / "profile.csv")
-        floor = pd.read_csv(prof / "floor.csv").set_index("part")["ms_per_call"]
+        floors = pd.read_csv(prof / "floor.csv").set_index("part")
+        floor, what = floors["ms_per_call"], floors["what"]
         out += "\n\n" + markdown_table(
             ["part of a step (sampled)", "share", "ms per step"],
             [[r.part, f"{100 * r.share:.1f} %", f"{r.ms_per_step:.4f}"]
              for r in parts.itertuples()])
-        what = pd.read_csv(prof / "floor.csv").set_index("part")["what"]
         share = parts.set_index("part")["ms_per_step"]
         compiled = share[["QP (C)", "linearisation (C)", "LiDAR", "plant"]].sum()
         step = float(parts["all_in_ms"].iloc[0])
