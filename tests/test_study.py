@@ -181,6 +181,13 @@ def test_an_interrupted_study_redoes_only_the_unfinished_runs(tmp_path):
     cached = S.run_study(study, out=tmp_path, workers=0, progress=False, log=lambda line: None)
     assert not cached.table["simulated"].any()
     assert {n: (tmp_path / n).read_bytes() for n in files} == files
+    # Fewer runs, all cached: the old timings are not these runs', so they are rewritten.
+    fewer = Study(study.name, study.specs[:2])
+    S.run_study(fewer, out=tmp_path, workers=0, progress=False, log=lambda line: None)
+    import pandas as pd
+
+    assert list(pd.read_csv(tmp_path / "timings.csv")["name"]) == [s.name for s in
+                                                                    study.specs[:2]]
 
 
 def test_a_run_that_raises_inside_a_worker_is_a_failed_row(tmp_path, monkeypatch):

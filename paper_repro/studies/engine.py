@@ -260,8 +260,9 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
       and ``study.json`` (the runs, their configurations, the golden hash);
     * what the machine determines: ``timings.csv`` (:data:`TIMING_COLUMNS` per run, by
       ``name``) and ``timings.json`` (wall time, versions, commit, machine). A call that flew
-      nothing (every run cached) keeps the ones already there: they record the flights, and
-      a re-run that only loads the cache would record the cache's speed as the study's.
+      nothing (every run cached) keeps the ones already there when they are of the same runs:
+      they record the flights, and a re-run that only loads the cache would record the
+      cache's speed as the study's.
 
     :func:`load_table` joins the two again."""
     from paper_repro.evidence.golden import golden_hash
@@ -273,7 +274,8 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
     if len(table) <= CSV_ROWS:
         _atomic(out / "table.csv", lambda p: flight.to_csv(p, index=False))
     flew = "simulated" not in table or bool(table["simulated"].fillna(False).any())
-    keep = not flew and (out / "timings.csv").is_file() and (out / "timings.json").is_file()
+    keep = (not flew and (out / "timings.csv").is_file() and (out / "timings.json").is_file()
+            and _same_runs(out / "timings.csv", table))
     if not keep:
         _atomic(out / "timings.csv", lambda p: table[["name", *timing]].to_csv(p, index=False))
     base = study.specs[0].config.to_dict()
@@ -289,6 +291,13 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
         machine = json.dumps({"wall_time_s": wall, "meta": run_metadata()}, indent=1,
                              default=str) + "\n"
         _atomic(out / "timings.json", lambda p: p.write_text(machine))
+
+
+def _same_runs(timings: Path, table) -> bool:
+    """``timings`` (a study's ``timings.csv``) holds the runs of ``table``, in its order."""
+    import pandas as pd
+
+    return list(pd.read_csv(timings)["name"]) == list(table["name"])
 
 
 def _atomic(path: Path, write) -> None:
