@@ -43,7 +43,7 @@ from paper_repro.sim.result import SimulationResult
 from paper_repro.solvers.factory import make_controller
 from paper_repro.studies.catalogue import passage_config
 
-SOLVERS = {  # name -> (NMPCParams.solver, controller options)
+SOLVERS = {  # name -> (SolverParams.nlp_solver, controller options)
     "reference": ("reference", {}),  # IPOPT; a solve stopped at the iteration limit failed
     "reference-iterate": ("reference", {"apply_unconverged": True}),  # ... its iterate applied
     "rti": ("rti", {"max_iter": 1, "line_search": False}),  # the default
@@ -91,10 +91,11 @@ def window_config(window: str, solver: str) -> Config:
         cfg = passage_config(base, seed, steps, scenario, metric=metric)
     else:
         cfg = dataclasses.replace(base, simulation=dataclasses.replace(
-            base.simulation, scenario=scenario, seed=seed, max_steps=steps,
-            prediction="oracle" if scenario == "crossing" else "static"))
-    return dataclasses.replace(cfg, nmpc=dataclasses.replace(cfg.nmpc,
-                                                             solver=SOLVERS[solver][0]))
+            base.simulation, scenario=scenario, seed=seed, max_steps=steps),
+            nmpc=dataclasses.replace(
+                base.nmpc, prediction="oracle" if scenario == "crossing" else "static"))
+    return dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver,
+                                                               nlp_solver=SOLVERS[solver][0]))
 
 
 def initial_state(window: str) -> np.ndarray | None:

@@ -125,7 +125,7 @@ def floors(repeats: int = 2000) -> pd.DataFrame:
     cfg = Config()
     ctl = make_controller(cfg)
     scene = make_scene(cfg.simulation.scenario, cfg.simulation.seed)
-    lidar = Lidar(scene.clouds, cfg.simulation.lidar_range)
+    lidar = Lidar(scene.clouds, cfg.sensor.range)
     captured = {}
     real_solve = ctl.qp.solve
 

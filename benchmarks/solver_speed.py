@@ -62,13 +62,13 @@ def main() -> None:
     prediction = args.prediction or ("static" if args.scenario in ("encounter", "paper")
                                      else "oracle")
     base = dataclasses.replace(
-        base, simulation=dataclasses.replace(base.simulation, scenario=args.scenario,
-                                             prediction=prediction),
+        base, simulation=dataclasses.replace(base.simulation, scenario=args.scenario),
+        nmpc=dataclasses.replace(base.nmpc, prediction=prediction),
         distance=dataclasses.replace(base.distance, metric=args.metric))
     runs = {}
     for name in args.solvers:
         solver, options = VARIANTS[name]
-        cfg = dataclasses.replace(base, nmpc=dataclasses.replace(base.nmpc, solver=solver))
+        cfg = dataclasses.replace(base, solver=dataclasses.replace(base.solver, nlp_solver=solver))
         t0 = time.perf_counter()
         ctl = make_controller(cfg, **options)
         build = time.perf_counter() - t0

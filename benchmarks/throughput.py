@@ -203,7 +203,7 @@ def _crossing_family(steps: int, passages: int, crossings: int) -> list[dict]:
     from paper_repro.studies.catalogue import make_study
 
     specs = [s for s in make_study("moving_obstacles", scenes=crossings).specs
-             if s.config.simulation.prediction == "oracle"]
+             if s.config.nmpc.prediction == "oracle"]
     return [_fly_family("random crossings (oracle)", m,
                         [s for s in specs if s.config.distance.metric == m])
             for m in ("smooth", "euclidean")]

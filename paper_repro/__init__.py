@@ -35,6 +35,7 @@ from paper_repro.config import (
     QuadrotorParams,
     SensorParams,
     SimulationParams,
+    SolverParams,
 )
 from paper_repro.problem.distance import (
     CloudWeights,
@@ -65,7 +66,8 @@ __version__ = version("paper_repro")
 __all__ = [
     "BarrierParams", "CloudWeights", "Config", "DistanceParams", "Equilibria", "Faults",
     "Lidar", "NMPCParams", "QuadrotorParams", "Region", "Scene", "SensorParams",
-    "SimulationParams", "SimulationResult", "VehicleModel", "clearance", "continuous_dynamics",
+    "SimulationParams", "SimulationResult", "SolverParams", "VehicleModel", "clearance",
+    "continuous_dynamics",
     "equilibrium", "euclidean_distance", "load_table", "make_controller", "make_scene",
     "make_study", "plant_step", "rk4_discretisation", "run_study", "simulate",
     "smooth_distance", "smooth_distance_gradient", "smooth_projection",

@@ -79,7 +79,7 @@ class DistanceParams:
         range
         r counts with weight ψ(r), 1 inside r_s − w, 0 at r_s, C∞ in between, in the
         centroid, W and V of the smooth metric. A point then enters and leaves D continuously
-        as it crosses the LiDAR sphere. Must be < r_s (``simulation.lidar_range``); the
+        as it crosses the LiDAR sphere. Must be < r_s (``sensor.range``); the
         smooth metric only.
     """
 
@@ -150,6 +150,10 @@ def _diag(*values: float) -> tuple[float, ...]:
     return tuple(float(v) for v in values)
 
 
+PREDICTIONS = ("static", "oracle", "kalman")
+"""How the problem predicts the regions it sees (``NMPCParams.prediction``)."""
+
+
 @dataclass(frozen=True)
 class NMPCParams:
     """Tracking NMPC of eq. (7) and (21), Section V.
@@ -174,23 +178,13 @@ class NMPCParams:
         i.e. 25 cm inside the 25 m workspace walls; the relaxation only needs to keep
         (x_a, u_a) off the boundary (Limon et al. 2018), and the paper's targets sit at
         z = 0, which is the boundary itself (see ``relaxed_bounds``).
-    solver : ``"rti"`` (default, Gauss-Newton SQP with HPIPM, :mod:`paper_repro.solvers.rti`) or
-        ``"reference"`` (IPOPT with the exact Hessian, :mod:`paper_repro.solvers.ipopt`, as the
-        paper).
-    sqp_iterations : SQP iterations per sampling instant of the ``rti`` solver (1 is the
-        real-time iteration).
-    line_search : *chosen* ``False``: the ``rti`` solver takes every full Gauss-Newton step,
-        the textbook real-time iteration. ``True`` is the *damped RTI*
-        (:class:`~paper_repro.solvers.rti.MeritLineSearch`): steps are shortened on the ℓ1 merit
-        function and the next instants' QPs get a Levenberg–Marquardt term. It is smoother
-        than the paper's controller, not a faster way to the same one: with the Euclidean
-        metric it removes most of the chattering the paper reports (Fig. 8), so it is not the
-        default. It is the remedy where a region moves at the vehicle, where full steps fall
-        into a period-2 oscillation that IPOPT does not show (``benchmarks/fidelity.py``).
-    qp_solver : QP solver of the ``rti`` solver: ``"riccati"`` (default, a Riccati recursion
-        warm-started with the previous active set, :mod:`paper_repro.solvers.riccati_qp`, HPIPM as
-        its
-        fallback) or ``"hpipm"`` (HPIPM's interior-point method for every QP).
+    prediction : how the problem predicts the regions it sees, ``"static"`` (*paper*: every
+        region stays where it is seen, and the solver is called exactly as without moving
+        regions), ``"oracle"`` (each region moves on at its true velocity, from the scene's
+        motions) or ``"kalman"`` (at the velocity estimated from the scans by
+        :class:`paper_repro.world.tracking.RegionTracker`). Only scenes with moving regions tell
+        them apart. With ``"oracle"`` or ``"kalman"`` the problem carries each region's
+        velocity among its parameters.
     region_slots : number of LiDAR-visible regions the NLP can hold at once.
     points_per_region : capacity of each region slot; scans with more visible points are
         reduced to the nearest ones (see ``paper_repro.solvers.ipopt``).
@@ -213,10 +207,7 @@ class NMPCParams:
     input_lower: tuple[float, ...] = _diag(0, 0, 0, 0)
     input_upper: tuple[float, ...] = _diag(12, 12, 12, 12)
     lam: float = 0.99
-    solver: str = "rti"
-    sqp_iterations: int = 1
-    line_search: bool = False
-    qp_solver: str = "riccati"
+    prediction: str = "static"
     region_slots: int = 2
     points_per_region: int = 120
 
@@ -242,11 +233,8 @@ class NMPCParams:
                                  f"{getattr(self, name)!r}")
         if not (is_number(self.lam) and 0.0 < self.lam < 1.0):
             raise ValueError(f"lam must lie in (0, 1), got {self.lam!r}")
-        require_choice("solver", self.solver, ("rti", "reference"))
-        require_choice("qp_solver", self.qp_solver, ("riccati", "hpipm"))
-        if not isinstance(self.line_search, bool):
-            raise ValueError(f"line_search must be True or False, got {self.line_search!r}")
-        for name in ("region_slots", "points_per_region", "sqp_iterations"):
+        require_choice("prediction", self.prediction, PREDICTIONS)
+        for name in ("region_slots", "points_per_region"):
             require_int(name, getattr(self, name), 1)
 
     @property
@@ -273,13 +261,47 @@ def relaxed_box(lower, upper, lam: float) -> tuple[np.ndarray, np.ndarray]:
     return mid - lam * half, mid + lam * half
 
 
-PREDICTIONS = ("static", "oracle", "kalman")
-"""How the controller predicts the regions it sees (``SimulationParams.prediction``)."""
+@dataclass(frozen=True)
+class SolverParams:
+    """How problem (21) is solved at each sampling instant: options of the solvers, not data of
+    the problem (as acados keeps its solver options apart from the OCP).
+
+    Attributes
+    ----------
+    nlp_solver : ``"rti"`` (default, Gauss-Newton SQP with a Riccati QP,
+        :mod:`paper_repro.solvers.rti`) or ``"reference"`` (IPOPT with the exact Hessian,
+        :mod:`paper_repro.solvers.ipopt`, as the paper).
+    sqp_iterations : SQP iterations per sampling instant of the ``rti`` solver (1 is the
+        real-time iteration).
+    line_search : *chosen* ``False``: the ``rti`` solver takes every full Gauss-Newton step,
+        the textbook real-time iteration. ``True`` is the *damped RTI*
+        (:class:`~paper_repro.solvers.rti.MeritLineSearch`): steps are shortened on the ℓ1 merit
+        function and the next instants' QPs get a Levenberg–Marquardt term. It is smoother
+        than the paper's controller, not a faster way to the same one: with the Euclidean
+        metric it removes most of the chattering the paper reports (Fig. 8), so it is not the
+        default. It is the remedy where a region moves at the vehicle, where full steps fall
+        into a period-2 oscillation that IPOPT does not show (``benchmarks/fidelity.py``).
+    qp_solver : QP solver of the ``rti`` solver: ``"riccati"`` (default, a Riccati recursion
+        warm-started with the previous active set, :mod:`paper_repro.solvers.riccati_qp`, HPIPM as
+        its fallback) or ``"hpipm"`` (HPIPM's interior-point method for every QP).
+    """
+
+    nlp_solver: str = "rti"
+    sqp_iterations: int = 1
+    line_search: bool = False
+    qp_solver: str = "riccati"
+
+    def __post_init__(self):
+        require_choice("nlp_solver", self.nlp_solver, ("rti", "reference"))
+        require_choice("qp_solver", self.qp_solver, ("riccati", "hpipm"))
+        if not isinstance(self.line_search, bool):
+            raise ValueError(f"line_search must be True or False, got {self.line_search!r}")
+        require_int("sqp_iterations", self.sqp_iterations, 1)
 
 
 @dataclass(frozen=True)
 class SimulationParams:
-    """Closed-loop mission settings.
+    """The mission a closed loop flies: the scene, when it ends, and how its end is judged.
 
     Attributes
     ----------
@@ -291,7 +313,6 @@ class SimulationParams:
         random scene; needs a scene with a ``finish``).
     tolerance : m, *paper* 0.3. A target counts as reached when the UAV is closer than this.
     max_steps : upper bound on closed-loop steps (one step is T_s).
-    lidar_range : r_s, m, *paper* 3.
     seed : seed of the scene: the Halton point clouds (region i uses ``seed + i``) and, for
         ``"random"``, the layout.
     stall_speed, stall_time, stall_distance : m/s, s, m, *chosen* 0.01, 5, 2. The NMPC is
@@ -305,31 +326,21 @@ class SimulationParams:
         (shifted, as after a failed solve). After more than ``fault_steps`` faults in a row
         the run ends with the outcome ``"fault"``; the previous plan ends at rest at its
         artificial equilibrium, so holding it for a second is safe.
-    prediction : how the controller predicts the regions it sees, ``"static"`` (*paper*:
-        every region stays where it is seen, and the solver is called exactly as without
-        moving regions), ``"oracle"`` (each region moves on at its true velocity, from the
-        scene's motions) or ``"kalman"`` (at the velocity estimated from the scans by
-        :class:`paper_repro.world.tracking.RegionTracker`). Only scenes with moving regions tell
-        them apart.
     """
 
     scenario: str = "paper"
     kind: str = "mission"
     tolerance: float = 0.3
     max_steps: int = 200_000
-    lidar_range: float = 3.0
     seed: int = 7
     stall_speed: float = 0.01
     stall_time: float = 5.0
     stall_distance: float = 2.0
     fault_steps: int = 100
-    prediction: str = "static"
 
     def __post_init__(self):
         require_choice("kind", self.kind, ("mission", "passage"))
-        require_choice("prediction", self.prediction, PREDICTIONS)
         require_positive("tolerance", self.tolerance)
-        require_positive("lidar_range", self.lidar_range)
         for name in ("stall_speed", "stall_time", "stall_distance"):
             require_positive(name, getattr(self, name))
         if not (isinstance(self.scenario, str) and self.scenario):
@@ -342,7 +353,8 @@ class SimulationParams:
 
 @dataclass(frozen=True)
 class SensorParams:
-    """Imperfections of the virtual LiDAR (:class:`paper_repro.world.lidar.Lidar`), for studies.
+    """The virtual LiDAR (:class:`paper_repro.world.lidar.Lidar`): its range and, for studies,
+    its imperfections.
 
     The defaults are a perfect sensor, as in the paper: every point within r_s is returned
     exactly, and nothing else. Noise is drawn from a generator seeded with ``seed``, so a
@@ -350,6 +362,9 @@ class SensorParams:
 
     Attributes
     ----------
+    range : r_s, m, *paper* 3. The detection radius: a point is seen when it lies within r_s
+        of the UAV. The problem reads it too, as the edge of the smooth sensing window
+        (``distance.window``).
     range_noise : m, *chosen* 0. Standard deviation of Gaussian noise on the measured range,
         along the ray from the sensor to the point (the direction is exact).
     dropout : probability in [0, 1) that a point within range is not returned, *chosen* 0.
@@ -359,12 +374,14 @@ class SensorParams:
     seed : seed of the sensor's noise generator, an integer >= 0.
     """
 
+    range: float = 3.0
     range_noise: float = 0.0
     dropout: float = 0.0
     spurious_rate: float = 0.0
     seed: int = 0
 
     def __post_init__(self):
+        require_positive("range", self.range)
         for name in ("range_noise", "spurious_rate"):
             v = getattr(self, name)
             if not (is_number(v) and math.isfinite(v) and v >= 0):
@@ -382,14 +399,20 @@ class SensorParams:
 class Config:
     """Everything that defines one run; saved as ``config.json`` beside each result.
 
+    The problem's data are ``quadrotor``, ``distance``, ``barrier``, ``nmpc`` and the LiDAR's
+    range (``sensor.range``); ``solver`` says how the problem is solved, and ``simulation`` and
+    the rest of ``sensor`` describe the world it is flown in.
+
     A ``config.json`` written before a part existed (e.g. ``sensor``) loads with that part's
-    defaults (:meth:`from_dict`).
+    defaults, and one written before a setting moved loads it in its new place
+    (:meth:`from_dict`, :data:`MOVED`).
     """
 
     quadrotor: QuadrotorParams = field(default_factory=QuadrotorParams)
     distance: DistanceParams = field(default_factory=DistanceParams)
     barrier: BarrierParams = field(default_factory=BarrierParams)
     nmpc: NMPCParams = field(default_factory=NMPCParams)
+    solver: SolverParams = field(default_factory=SolverParams)
     simulation: SimulationParams = field(default_factory=SimulationParams)
     sensor: SensorParams = field(default_factory=SensorParams)
 
@@ -398,9 +421,9 @@ class Config:
             if not isinstance(getattr(self, f.name), f.default_factory):
                 raise ValueError(f"{f.name} must be a {f.default_factory.__name__}, got "
                                  f"{getattr(self, f.name)!r}")
-        if self.distance.window >= self.simulation.lidar_range:
-            raise ValueError(f"distance.window must be < simulation.lidar_range = "
-                             f"{self.simulation.lidar_range} m (a window as wide as the range "
+        if self.distance.window >= self.sensor.range:
+            raise ValueError(f"distance.window must be < sensor.range = "
+                             f"{self.sensor.range} m (a window as wide as the range "
                              f"sees nothing at full weight), got {self.distance.window!r}")
         # Cross-field: the artificial equilibrium (hover at rest, eq. 7) must exist in
         # λ(𝒳 × 𝒰), or the OCP is infeasible at every step.
@@ -422,9 +445,11 @@ class Config:
 
     @classmethod
     def from_dict(cls, data: dict) -> Config:
-        """Inverse of :meth:`to_dict`; a missing part (an older file) takes its defaults."""
+        """Inverse of :meth:`to_dict`; a missing part (an older file) takes its defaults, and a
+        setting in its former place (:data:`MOVED`) is read into its new one."""
         if not isinstance(data, dict):
             raise ValueError(f"config must be a dict of parts, got {type(data).__name__}")
+        data = _moved_settings(data)
         unknown = set(data) - {f.name for f in dataclasses.fields(cls)}
         if unknown:
             raise ValueError(f"config has unknown parts {sorted(unknown)}")
@@ -442,3 +467,33 @@ class Config:
         return cls(**parts)
 
 
+
+
+MOVED = {
+    ("nmpc", "solver"): ("solver", "nlp_solver"),
+    ("nmpc", "sqp_iterations"): ("solver", "sqp_iterations"),
+    ("nmpc", "line_search"): ("solver", "line_search"),
+    ("nmpc", "qp_solver"): ("solver", "qp_solver"),
+    ("simulation", "lidar_range"): ("sensor", "range"),
+    ("simulation", "prediction"): ("nmpc", "prediction"),
+}
+"""Settings that moved between parts, (old part, old name) → (new part, new name): the
+solver's options left the problem's ``nmpc`` part, and the LiDAR's range and the prediction of
+moving regions left the mission (``simulation``)."""
+
+
+def _moved_settings(data: dict) -> dict:
+    """``data`` (a :meth:`Config.to_dict`) with every setting of :data:`MOVED` in its new
+    place; a setting given in both places is refused."""
+    data = {part: dict(values) if isinstance(values, dict) else values
+            for part, values in data.items()}
+    for (old_part, old_name), (new_part, new_name) in MOVED.items():
+        old = data.get(old_part)
+        if not (isinstance(old, dict) and old_name in old):
+            continue
+        new = data.setdefault(new_part, {})
+        if new_name in new:
+            raise ValueError(f"config gives {old_part}.{old_name} (its former place) and "
+                             f"{new_part}.{new_name}: give only {new_part}.{new_name}")
+        new[new_name] = old.pop(old_name)
+    return data

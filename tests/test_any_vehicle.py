@@ -46,7 +46,8 @@ def flights():
     model = point_mass()
     out = {}
     for solver in ("rti", "reference"):
-        cfg = dataclasses.replace(CONFIG, nmpc=dataclasses.replace(CONFIG.nmpc, solver=solver))
+        cfg = dataclasses.replace(CONFIG, solver=dataclasses.replace(CONFIG.solver,
+                                                                     nlp_solver=solver))
         out[solver] = simulate(cfg, make_controller(cfg, model), max_steps=160,
                                progress=False, scene=SCENE)
     return out

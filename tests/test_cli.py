@@ -23,7 +23,7 @@ def test_run_flies_the_crossing_with_a_kalman_prediction(tmp_path, capsys):
     assert "crossing/smooth" in capsys.readouterr().out
     result = SimulationResult.load(out)
     assert result.scene.is_moving and result.steps == 150
-    assert result.config.simulation.prediction == "kalman"
+    assert result.config.nmpc.prediction == "kalman"
     assert result.config.distance.window == 0.5
     assert result.region_velocities.shape == (150, len(result.scene.clouds), 3)
     assert np.isfinite(result.region_velocities).all()

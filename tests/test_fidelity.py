@@ -26,7 +26,7 @@ def _window(name: str, line_search: bool = False):
     cfg = Config()
     cfg = dataclasses.replace(
         cfg, distance=dataclasses.replace(cfg.distance, metric=metric),
-        nmpc=dataclasses.replace(cfg.nmpc, line_search=line_search))
+        solver=dataclasses.replace(cfg.solver, line_search=line_search))
     fast = simulate(cfg, max_steps=len(rows), progress=False, initial_state=rows[0, :12])
     return rows, fast
 

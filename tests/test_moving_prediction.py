@@ -6,7 +6,15 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from paper_repro import Config, DistanceParams, Lidar, NMPCParams, SimulationParams, make_scene
+from paper_repro import (
+    Config,
+    DistanceParams,
+    Lidar,
+    NMPCParams,
+    SimulationParams,
+    SolverParams,
+    make_scene,
+)
 from paper_repro.problem.distance import smooth_distance
 from paper_repro.problem.ocp import OCP
 from paper_repro.problem.scan import ScanLayout
@@ -19,8 +27,9 @@ SMALL = NMPCParams(region_slots=1, points_per_region=48)
 
 def _config(prediction="oracle", solver="rti", metric="smooth"):
     return Config(distance=DistanceParams(metric=metric),
-                  simulation=SimulationParams(scenario="encounter", prediction=prediction),
-                  nmpc=dataclasses.replace(SMALL, solver=solver))
+                  simulation=SimulationParams(scenario="encounter"),
+                  nmpc=dataclasses.replace(SMALL, prediction=prediction),
+                  solver=SolverParams(nlp_solver=solver))
 
 
 def test_a_rigid_translation_shifts_the_query():

@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pytest
 
-from paper_repro import Config, SimulationParams
+from paper_repro import Config, NMPCParams, SimulationParams
 from paper_repro.config import SensorParams
 from paper_repro.problem.ocp import NMPCSolution
 from paper_repro.sim.loop import simulate
@@ -124,16 +124,16 @@ def test_static_scene_description_unchanged(name, seed):
 def test_run_key_follows_the_prediction():
     """The key is a function of the configuration: an explicit "static" is the default's key,
     another prediction is another run."""
-    static = Config(simulation=SimulationParams(prediction="static"))
+    static = Config(nmpc=NMPCParams(prediction="static"))
     assert run_key(static, 1000, "fp") == run_key(Config(), 1000, "fp")
-    oracle = Config(simulation=SimulationParams(prediction="oracle"))
+    oracle = Config(nmpc=NMPCParams(prediction="oracle"))
     assert run_key(oracle, 1000, "fp") != run_key(Config(), 1000, "fp")
 
 
 @pytest.mark.parametrize("value", ["none", "Static", 1, None])
 def test_prediction_is_validated(value):
     with pytest.raises(ValueError, match="prediction"):
-        SimulationParams(prediction=value)
+        NMPCParams(prediction=value)
 
 
 @pytest.mark.parametrize("name", ["crossing", "oncoming", "random-crossing"])
@@ -354,7 +354,7 @@ def approach_runs():
     scene = _approaching_scene()
     runs = {}
     for prediction in ("static", "oracle", "kalman"):
-        config = Config(simulation=SimulationParams(prediction=prediction))
+        config = Config(nmpc=NMPCParams(prediction=prediction))
         ctl = HoverController(config)
         result = simulate(config, ctl, max_steps=300, scene=scene, progress=False)
         runs[prediction] = (result, ctl.calls)
@@ -406,7 +406,7 @@ def test_moving_result_saves_and_loads(approach_runs, tmp_path):
     loaded = SimulationResult.load(result.save(tmp_path / "run"))
     assert loaded.scene.is_moving and loaded.scene.motions == result.scene.motions
     assert loaded.scene.fingerprint() == result.scene.fingerprint()
-    assert loaded.config.simulation.prediction == "oracle"
+    assert loaded.config.nmpc.prediction == "oracle"
     np.testing.assert_array_equal(loaded.clearance, result.clearance)
     for a, b in zip(loaded.scene.clouds_at(2.5), result.scene.clouds_at(2.5), strict=True):
         np.testing.assert_array_equal(a, b)

@@ -11,10 +11,13 @@ from paper_repro import (
     DistanceParams,
     Lidar,
     NMPCParams,
+    SensorParams,
     SimulationParams,
+    SolverParams,
     clearance,
     make_scene,
 )
+from paper_repro.config import MOVED
 from paper_repro.problem.ocp import OCP
 from paper_repro.sim.loop import simulate
 from paper_repro.solvers.ipopt import TrackingNMPC
@@ -168,7 +171,7 @@ def test_euclidean_variant_agrees_with_the_fast_path_near_the_corner(scene):
     cfg = _config("euclidean")
     ref = simulate(cfg, controller=TrackingNMPC(cfg), max_steps=150, progress=False,
                    scene=near)
-    rti = dataclasses.replace(cfg, nmpc=dataclasses.replace(cfg.nmpc, solver="rti"))
+    rti = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, nlp_solver="rti"))
     fast = simulate(rti, controller=make_controller(rti), max_steps=150, progress=False,
                     scene=near)
     assert ref.failures == 0 and ref.visible_points.max() > 0
@@ -186,6 +189,55 @@ def test_config_round_trips_through_dict():
     assert Config.from_dict(cfg.to_dict()) == cfg
     with pytest.raises(ValueError, match="unknown barrier parameters"):
         Config.from_dict({"barrier": {"dmin": 1.0}})
+
+
+def test_a_config_saved_before_the_solver_options_moved_loads_them_in_their_new_place():
+    """A ``config.json`` of the former layout (solver options in ``nmpc``, the LiDAR's range
+    and the prediction in ``simulation``) loads into ``solver``, ``sensor`` and ``nmpc``; a
+    setting given in both places is refused rather than one of them silently dropped."""
+    new = Config(nmpc=NMPCParams(prediction="kalman"),
+                 solver=SolverParams(nlp_solver="reference", sqp_iterations=3, line_search=True,
+                                     qp_solver="hpipm"),
+                 sensor=SensorParams(range=4.5, dropout=0.1))
+    old = new.to_dict()
+    old["nmpc"].update(solver="reference", sqp_iterations=3, line_search=True,
+                       qp_solver="hpipm")
+    old["simulation"].update(lidar_range=4.5, prediction="kalman")
+    del old["solver"], old["sensor"]["range"], old["nmpc"]["prediction"]
+    assert Config.from_dict(old) == new
+    assert set(MOVED) == {("nmpc", "solver"), ("nmpc", "sqp_iterations"),
+                          ("nmpc", "line_search"), ("nmpc", "qp_solver"),
+                          ("simulation", "lidar_range"), ("simulation", "prediction")}
+    both = new.to_dict()
+    both["simulation"]["lidar_range"] = 4.5
+    with pytest.raises(ValueError, match=r"simulation.lidar_range .* sensor.range"):
+        Config.from_dict(both)
+
+
+class _Unread:
+    """A config part that fails the moment anything reads it."""
+
+    def __init__(self, name):
+        self._name = name
+
+    def __getattr__(self, attr):
+        raise AssertionError(f"the problem read {self._name}.{attr}")
+
+
+@pytest.mark.parametrize("vehicle", ["quadrotor", "unicycle"])
+def test_the_problem_reads_neither_the_solver_options_nor_the_mission(vehicle):
+    """Problem (21) is built from the vehicle, the distance, the barrier, ``nmpc`` and the
+    LiDAR's range only: with ``solver`` and ``simulation`` replaced by parts that raise when
+    read, the OCP still builds, and it is the same problem (same scan layout and step)."""
+    from paper_repro.vehicles.unicycle import unicycle_config, unicycle_model
+
+    cfg = unicycle_config() if vehicle == "unicycle" else Config()
+    model = unicycle_model() if vehicle == "unicycle" else None
+    blind = Config(**{f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg)})
+    object.__setattr__(blind, "solver", _Unread("solver"))
+    object.__setattr__(blind, "simulation", _Unread("simulation"))
+    seen, full = OCP(blind, model), OCP(cfg, model)
+    assert seen.scan == full.scan and seen.step == full.step and seen.horizon == full.horizon
 
 
 @pytest.mark.parametrize("kwargs, name", [
@@ -233,7 +285,7 @@ def test_cli_run_saves_a_loadable_result(tmp_path, capsys, solver):
     assert "encounter/smooth (mission): step_limit after 3 steps" in line
     assert "failed solves 0" in line
     result = SimulationResult.load(out)
-    assert result.steps == 3 and result.config.nmpc.solver == solver
+    assert result.steps == 3 and result.config.solver.nlp_solver == solver
     frame = result.to_frame()
     assert len(frame) == 3 and {"t", "x", "f1", "x_a", "clearance"} <= set(frame.columns)
     assert result.meta["casadi"] and "git_commit" in result.meta

@@ -6,7 +6,15 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from paper_repro import Config, DistanceParams, Lidar, NMPCParams, SimulationParams, make_scene
+from paper_repro import (
+    Config,
+    DistanceParams,
+    Lidar,
+    NMPCParams,
+    SimulationParams,
+    SolverParams,
+    make_scene,
+)
 from paper_repro.config import BarrierParams
 from paper_repro.problem.distance import CloudWeights, euclidean_distance, smooth_distance
 from paper_repro.problem.ocp import OCP
@@ -24,7 +32,7 @@ def _config(metric="smooth", solver="rti", **barrier):
     return Config(distance=DistanceParams(metric=metric),
                   barrier=BarrierParams(**barrier),
                   simulation=SimulationParams(scenario="encounter"),
-                  nmpc=dataclasses.replace(SMALL, solver=solver))
+                  nmpc=SMALL, solver=SolverParams(nlp_solver=solver))
 
 
 # --- the penalty ---------------------------------------------------------------------------------

@@ -281,7 +281,7 @@ def test_lidar_instants_pick_the_closest_approach(result, scene):
     d = np.linalg.norm(result.x[:, None, :3] - tower[None], axis=2).min(axis=1)
     assert d.min() < 1.5 and int(np.argmin(d)) in steps
     pos = result.x[steps, :3]
-    r_s = result.config.simulation.lidar_range
+    r_s = result.config.sensor.range
     assert all(np.linalg.norm(a - b) >= r_s for i, a in enumerate(pos) for b in pos[i + 1:])
 
 
@@ -553,10 +553,10 @@ def _approach_scene():
 
 
 def _fly_approach(prediction, sensor=None, steps=350):
-    from paper_repro.config import SensorParams, SimulationParams
+    from paper_repro.config import NMPCParams, SensorParams
     from paper_repro.sim.loop import simulate
 
-    config = Config(simulation=SimulationParams(prediction=prediction),
+    config = Config(nmpc=NMPCParams(prediction=prediction),
                     sensor=sensor or SensorParams())
     ctl = _HoverRecorder(config)
     result = simulate(config, ctl, max_steps=steps, scene=_approach_scene(), progress=False)

@@ -191,7 +191,7 @@ def test_cli_solver_option_reaches_the_runs(tmp_path, monkeypatch, fake_simulati
     original = R.reproduce
 
     def spy(**kwargs):
-        seen.append(kwargs["config"].nmpc.solver)
+        seen.append(kwargs["config"].solver.nlp_solver)
         return original(**{**kwargs, "notebooks": ["06_summary"]})
 
     monkeypatch.setattr(reproduce_command, "reproduce", spy)

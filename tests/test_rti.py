@@ -5,7 +5,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from paper_repro import Config, DistanceParams, Lidar, NMPCParams, SimulationParams, make_scene
+from paper_repro import (
+    Config,
+    DistanceParams,
+    Lidar,
+    NMPCParams,
+    SimulationParams,
+    SolverParams,
+    make_scene,
+)
 from paper_repro.analysis.metrics import COLLISION_CLEARANCE
 from paper_repro.sim.loop import simulate
 from paper_repro.sim.plant import Plant
@@ -20,7 +28,7 @@ SMALL = NMPCParams(region_slots=1, points_per_region=48)
 def _config(metric="smooth", solver="rti"):
     return Config(distance=DistanceParams(metric=metric),
                   simulation=SimulationParams(scenario="encounter"),
-                  nmpc=dataclasses.replace(SMALL, solver=solver))
+                  nmpc=SMALL, solver=SolverParams(nlp_solver=solver))
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +45,7 @@ def test_make_controller_follows_the_config():
     assert isinstance(make_controller(_config(solver="rti")), RealTimeNMPC)
     assert isinstance(make_controller(_config(solver="reference")), TrackingNMPC)
     with pytest.raises(ValueError, match="solver"):
-        NMPCParams(solver="acados")
+        SolverParams(nlp_solver="acados")
 
 
 @pytest.mark.parametrize("metric", ["smooth", "euclidean"])
@@ -84,7 +92,7 @@ def test_fast_path_tracks_the_reference_in_closed_loop(reference, scene):
 
 
 def _qp_config(qp_solver):
-    return dataclasses.replace(_config(), nmpc=dataclasses.replace(SMALL, qp_solver=qp_solver))
+    return dataclasses.replace(_config(), solver=SolverParams(qp_solver=qp_solver))
 
 
 def test_riccati_and_hpipm_give_the_same_closed_loop(scene):
@@ -238,7 +246,7 @@ def test_bad_options_are_rejected():
     with pytest.raises(ValueError, match="line_search"):
         RealTimeNMPC(_config(), line_search="yes")
     with pytest.raises(ValueError, match="qp_solver"):
-        NMPCParams(qp_solver="osqp")
+        SolverParams(qp_solver="osqp")
     with pytest.raises(ValueError, match="x0"):
         RealTimeNMPC(_config()).solve(np.zeros(3), np.zeros(3))
 
@@ -265,8 +273,8 @@ def test_line_search_stops_the_period_two_oscillation_on_a_crossing():
     """A box crossing the path at 1 m/s (oracle prediction): with full steps the thrusts jump
     between their bounds at every sample once the region is near; the line search (with its
     damping) shortens a few steps and the jumps all but vanish, with more clearance."""
-    cfg = Config(simulation=SimulationParams(scenario="crossing", prediction="oracle"),
-                 nmpc=dataclasses.replace(SMALL, solver="rti"))
+    cfg = Config(simulation=SimulationParams(scenario="crossing"),
+                 nmpc=dataclasses.replace(SMALL, prediction="oracle"))
     jumps, clearance = {}, {}
     for line_search in (True, False):
         ctl = RealTimeNMPC(cfg, line_search=line_search)

@@ -4,7 +4,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from paper_repro import Config, DistanceParams, SimulationParams
+from paper_repro import Config, DistanceParams, SensorParams, SimulationParams, SolverParams
 from paper_repro.problem.distance import CloudWeights, sensing_window, smooth_distance
 from paper_repro.problem.ocp import OCP
 from paper_repro.problem.scan import ScanLayout
@@ -89,12 +89,12 @@ def test_the_window_is_an_option_of_the_config_read_by_both_solvers():
     cfg = Config(distance=DistanceParams(window=0.5))
     assert OCP(cfg).scan.window == 0.5 and OCP(cfg).scan.sensor_range == 3.0
     assert OCP(Config()).scan.window == 0.0  # off by default: the paper's set-up
-    with pytest.raises(ValueError, match=r"^distance\.window must be < simulation\.lidar"):
+    with pytest.raises(ValueError, match=r"^distance\.window must be < sensor\.range"):
         Config(distance=DistanceParams(window=3.0))
     with pytest.raises(ValueError, match="^window must be a finite number >= 0"):
         DistanceParams(window=-0.1)
     assert Config(distance=DistanceParams(window=1.0),
-                  simulation=SimulationParams(lidar_range=4.0)).distance.window == 1.0
+                  sensor=SensorParams(range=4.0)).distance.window == 1.0
 
 
 def test_both_solvers_fly_the_window_and_agree():
@@ -119,8 +119,8 @@ def test_both_solvers_fly_the_window_and_agree():
     assert np.any(ranges > 2.5), "the test needs points in the window's band"
     fast = RealTimeNMPC(cfg, max_iter=40, step_tol=1e-10)
     a = fast.solve(x0, scene.targets[0], visible)
-    b = TrackingNMPC(dataclasses.replace(cfg, nmpc=dataclasses.replace(
-        small, solver="reference"))).solve(x0, scene.targets[0], visible)
+    b = TrackingNMPC(dataclasses.replace(cfg, solver=SolverParams(
+        nlp_solver="reference"))).solve(x0, scene.targets[0], visible)
     assert a.success and b.success
     np.testing.assert_allclose(a.x, b.x, atol=1e-4)
     windowed = fast.obstacle_parameters(visible, x0[:3])

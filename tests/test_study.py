@@ -8,6 +8,7 @@ worker or two, bit-identical trajectories, a killed worker or driver losing noth
 import dataclasses
 import os
 import signal
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -56,11 +57,10 @@ def test_the_moving_study_flies_each_crossing_with_every_prediction():
     static-prediction run, the others by their prediction."""
     study = S.moving_obstacles(scenes=3)
     assert len(study.specs) == 3 * 3 * 2
-    configs = [s.config.simulation for s in study.specs]
-    assert {c.scenario for c in configs} == {"random-crossing"}
-    assert {c.prediction for c in configs} == set(PREDICTIONS)
-    labels = [dict(s.labels)["prediction"] for s in study.specs]
-    assert labels == [c.prediction for c in configs]
+    assert {s.config.simulation.scenario for s in study.specs} == {"random-crossing"}
+    predictions = [s.config.nmpc.prediction for s in study.specs]
+    assert set(predictions) == set(PREDICTIONS)
+    assert [dict(s.labels)["prediction"] for s in study.specs] == predictions
     assert study.specs[0].scene().is_moving
     # One controller per worker and configuration: the prediction is part of the problem (the
     # scan carries velocities), the scene and the seed are not.
@@ -188,6 +188,17 @@ def test_an_interrupted_study_redoes_only_the_unfinished_runs(tmp_path):
 
     assert list(pd.read_csv(tmp_path / "timings.csv")["name"]) == [s.name for s in
                                                                     study.specs[:2]]
+    # The cache moved (re-keyed): the measured timings stay, the locations follow the cache.
+    measured = pd.read_csv(tmp_path / "timings.csv", float_precision="round_trip")
+    moved = tmp_path / "moved"
+    (tmp_path / "runs").rename(moved)
+    again = S.run_study(fewer, out=tmp_path, workers=0, progress=False, log=lambda line: None,
+                        runs_dir=moved)
+    assert not again.table["simulated"].any()
+    kept = pd.read_csv(tmp_path / "timings.csv", float_precision="round_trip")
+    assert [Path(d).parent for d in kept["result_dir"]] == [moved, moved]
+    pd.testing.assert_frame_equal(kept.drop(columns="result_dir"),
+                                  measured.drop(columns="result_dir"))
 
 
 def test_a_run_that_raises_inside_a_worker_is_a_failed_row(tmp_path, monkeypatch):

@@ -5,6 +5,7 @@ The closed-loop tests tune σ alone (it is not compiled into the solver's C, so 
 one tiny passage of 40 steps, one LiDAR slot of 64 points.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -202,6 +203,26 @@ def test_a_resumed_study_must_be_the_same_study(tmp_path):
     with pytest.raises(ValueError, match="max_steps: the stored study"):
         T.tune(T.TuningSettings(2, quick=True, space=SIGMA_ONLY, seeds=(0,), max_steps=30,
                                 base=TINY, out=tmp_path / "tuning",
+                                runs_dir=tmp_path / "runs"), workers=0, log=lambda line: None)
+
+
+def test_a_study_stored_before_the_solver_options_moved_resumes_as_the_same_study(tmp_path):
+    """A stored base of the former layout (``nmpc.line_search``, ``simulation.lidar_range``) is
+    the same base: the study resumes and flies nothing; a different base is still refused."""
+    _tune(tmp_path, 1)
+    storage = f"sqlite:///{tmp_path / 'tuning' / 'tuning.db'}"
+    study = optuna.load_study(study_name=T.STUDY_NAME, storage=storage)
+    old = study.user_attrs["base"]
+    old["nmpc"]["line_search"] = old["solver"].pop("line_search")
+    old["simulation"]["lidar_range"] = old["sensor"].pop("range")
+    study.set_user_attr("base", old)
+    assert _tune(tmp_path, 1).flown_trials == 0
+    assert "line_search" in optuna.load_study(study_name=T.STUDY_NAME,
+                                              storage=storage).user_attrs["base"]["solver"]
+    other = dataclasses.replace(TINY, sensor=dataclasses.replace(TINY.sensor, range=4.0))
+    with pytest.raises(ValueError, match="base: the stored study"):
+        T.tune(T.TuningSettings(1, quick=True, space=SIGMA_ONLY, seeds=(0,), max_steps=40,
+                                base=other, out=tmp_path / "tuning",
                                 runs_dir=tmp_path / "runs"), workers=0, log=lambda line: None)
 
 

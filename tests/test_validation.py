@@ -7,7 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from paper_repro import Config, DistanceParams, NMPCParams, SimulationParams, make_scene
+from paper_repro import (
+    Config,
+    DistanceParams,
+    NMPCParams,
+    SimulationParams,
+    SolverParams,
+    make_scene,
+)
 from paper_repro.config import BarrierParams, QuadrotorParams, SensorParams
 from paper_repro.problem.ocp import OCP
 from paper_repro.problem.scan import check_visible
@@ -191,8 +198,8 @@ def test_lidar_never_reshapes_a_cloud():
 # --- the one form of `visible` --------------------------------------------------------------
 
 def _config(solver):
-    return Config(simulation=SimulationParams(scenario="encounter"),
-                  nmpc=dataclasses.replace(SMALL, solver=solver))
+    return Config(simulation=SimulationParams(scenario="encounter"), nmpc=SMALL,
+                  solver=SolverParams(nlp_solver=solver))
 
 
 @pytest.mark.parametrize("visible, pattern", [
@@ -219,7 +226,7 @@ def test_check_visible_accepts_the_documented_form_without_copying():
 
 @pytest.mark.parametrize("make", [lambda c: RealTimeNMPC(c),
                                   lambda c: TrackingNMPC(dataclasses.replace(
-                                      c, nmpc=dataclasses.replace(c.nmpc, solver="reference")))])
+                                      c, solver=SolverParams(nlp_solver="reference")))])
 def test_solvers_refuse_a_bare_array(make, encounter):
     """Both solvers refuse a bare (k, 3) array before solving (the RTI solver used to return
     success=True with u0 ≈ [11.7, 3.6, 0, 0] N)."""

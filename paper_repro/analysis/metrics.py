@@ -231,7 +231,7 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
         "scene": result.scene.name,
         "scene_fingerprint": result.scene.fingerprint(),
         "kind": cfg.simulation.kind,
-        "solver": cfg.nmpc.solver,
+        "solver": cfg.solver.nlp_solver,
         "steps": int(result.steps),
         "simulated_time_s": simulated,
         "outcome": result.outcome,

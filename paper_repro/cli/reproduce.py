@@ -29,8 +29,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "by the configuration, not by the code)")
     parser.add_argument("--solver", choices=("rti", "reference"), default=None,
                         help="NMPC solver of the runs (default: the config's, "
-                             f"{Config().nmpc.solver!r}; 'reference' is IPOPT as in the paper, "
-                             "about 100x slower)")
+                             f"{Config().solver.nlp_solver!r}; 'reference' is IPOPT as in the "
+                             "paper, about 100x slower)")
     parser.add_argument("--notebooks", nargs="+", metavar="NAME", default=None,
                         choices=[nb.name for nb in NOTEBOOKS],
                         help="execute only these notebooks (default: all)")
@@ -53,7 +53,7 @@ def main(args: argparse.Namespace) -> int:
     config = Config()
     if args.solver is not None:
         config = dataclasses.replace(
-            config, nmpc=dataclasses.replace(config.nmpc, solver=args.solver))
+            config, solver=dataclasses.replace(config.solver, nlp_solver=args.solver))
     reproduce(quick=args.quick, max_steps=args.max_steps, force=args.force,
               notebooks=args.notebooks, config=config, figures_dir=args.figures_dir,
               progress=False if args.no_progress else None,

@@ -62,12 +62,14 @@ def main(args) -> int:
         distance=dataclasses.replace(
             cfg.distance, metric=args.metric,
             window=cfg.distance.window if args.window is None else args.window),
-        nmpc=dataclasses.replace(cfg.nmpc, solver=args.solver, qp_solver=args.qp_solver,
-                                 line_search=args.line_search),
+        nmpc=dataclasses.replace(
+            cfg.nmpc,
+            prediction=cfg.nmpc.prediction if args.prediction is None else args.prediction),
+        solver=dataclasses.replace(cfg.solver, nlp_solver=args.solver,
+                                   qp_solver=args.qp_solver, line_search=args.line_search),
         simulation=dataclasses.replace(
             sim, scenario=args.scenario, kind=args.kind,
-            seed=sim.seed if args.seed is None else args.seed,
-            prediction=sim.prediction if args.prediction is None else args.prediction),
+            seed=sim.seed if args.seed is None else args.seed),
     )
     out = output_directory("--out", args.out)
     result = simulate(cfg, max_steps=args.max_steps,

@@ -58,7 +58,7 @@ class GoldenFlight:
     description : what it exercises.
     scenario, kind, seed, metric, steps, solver, prediction : the run (see
         :class:`~paper_repro.config.SimulationParams`, :class:`~paper_repro.config.NMPCParams`).
-    line_search : the damped real-time iteration (``NMPCParams.line_search``).
+    line_search : the damped real-time iteration (``SolverParams.line_search``).
     start : ``(other flight, step)``: start from the state that flight reached at that step
         (a window rich in obstacles, flown with a slow solver); ``None``: the scene's start.
     vehicle : ``"quadrotor"`` or ``"unicycle"`` (the ground robot's planar L-wall).
@@ -91,10 +91,10 @@ class GoldenFlight:
                 cfg, distance=dataclasses.replace(cfg.distance, metric=self.metric),
                 simulation=dataclasses.replace(cfg.simulation, scenario=self.scenario,
                                                kind=self.kind, seed=self.seed,
-                                               max_steps=self.steps,
-                                               prediction=self.prediction))
-        return dataclasses.replace(cfg, nmpc=dataclasses.replace(
-            cfg.nmpc, solver=self.solver, line_search=self.line_search))
+                                               max_steps=self.steps),
+                nmpc=dataclasses.replace(cfg.nmpc, prediction=self.prediction))
+        return dataclasses.replace(cfg, solver=dataclasses.replace(
+            cfg.solver, nlp_solver=self.solver, line_search=self.line_search))
 
 
 GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (

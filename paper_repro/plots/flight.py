@@ -47,7 +47,7 @@ def plot_flight_3d(result, scene, ax=None, sphere_steps=None, n_spheres: int = 4
     ax.plot(*pos[idx].T, color="black", lw=1.2, label="trajectory")
     if sphere_steps is None:
         sphere_steps = lidar_instants(result, scene, n_spheres)
-    r_s = result.config.simulation.lidar_range
+    r_s = result.config.sensor.range
     for j, k in enumerate(sphere_steps):
         draw_sphere(ax, pos[k], r_s, label=f"LiDAR range ($r_s$ = {r_s:g} m)" if j == 0 else None)
     mark_start_and_targets(ax, scene, three_d=True)
@@ -245,7 +245,7 @@ def lidar_instants(result, scene, n: int = 4) -> list[int]:
     """Steps at which to draw the LiDAR sphere: the closest approach to each region the UAV
     comes within range of, then evenly spaced steps at least r_s apart, ``n`` at most."""
     pos = result.x[:, :3]
-    r_s = result.config.simulation.lidar_range
+    r_s = result.config.sensor.range
     chosen = []
     for cloud in scene.clouds:
         d = cKDTree(cloud).query(pos)[0]

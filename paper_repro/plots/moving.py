@@ -22,10 +22,10 @@ from paper_repro.plots.studies import METRIC_COLOURS
 from paper_repro.world.lidar import Lidar
 from paper_repro.world.scene import WORKSPACE_LOWER, WORKSPACE_UPPER
 
-# --- moving obstacles (simulation.prediction: static, oracle, kalman) ------------------------
+# --- moving obstacles (nmpc.prediction: static, oracle, kalman) ------------------------
 
 PREDICTION_COLOURS = {"static": "tab:gray", "oracle": "tab:green", "kalman": "tab:orange"}
-"""Colour of each way of predicting a moving region (``SimulationParams.prediction``)."""
+"""Colour of each way of predicting a moving region (``NMPCParams.prediction``)."""
 
 GHOST_COLOR = "tab:blue"
 
@@ -46,7 +46,7 @@ def prediction_velocities(result) -> np.ndarray:
     -------
     (K, n_regions, 3) array, m/s, K = ``result.steps``.
     """
-    if result.config.simulation.prediction == "static":
+    if result.config.nmpc.prediction == "static":
         return np.zeros((result.steps, len(result.scene.clouds), result.scene.dim))
     if result.region_velocities is None:
         raise ValueError(f"{result.scene.name}: this result was saved before the closed loop "
@@ -93,7 +93,7 @@ def plot_clearance_time(results, labels, ax=None, t_range=None,
                 label=f"{label}: min {c[j]:.3f} m at {t[j]:.2f} s")
         ax.plot(t[j], c[j], "o", color=colour, ms=5)
     ax.axhline(collision, color="k", ls=":", lw=1, label=f"collision < {collision:g} m")
-    top = top if top is not None else results[0].config.simulation.lidar_range + 1.0
+    top = top if top is not None else results[0].config.sensor.range + 1.0
     ax.set_ylim(0.0, top)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("clearance [m]")
@@ -120,7 +120,7 @@ def _draw_crossing(ax, result, k: int, plane: str, velocities=None, stages=(),
     (blue rings, fainter with j)."""
     i0, i1 = _plane_index(plane)
     cfg = result.config
-    r_s = cfg.simulation.lidar_range
+    r_s = cfg.sensor.range
     t = float(result.t[min(k, len(result.t) - 1)])
     pos = result.x[:, :3]
     artists = []
@@ -321,7 +321,7 @@ def animate_crossing(result, path, velocities=None, planes=("xy", "yz"), stages=
     handles = _crossing_handles(stages, result.config.nmpc.prediction_step)
     fig.legend(handles=handles, loc="lower center", ncols=3, fontsize="small", frameon=False)
     title = fig.suptitle("", fontsize="medium")
-    prediction = result.config.simulation.prediction
+    prediction = result.config.nmpc.prediction
     drawn = []
 
     def update(k):

@@ -46,9 +46,10 @@ class OCP:
 
     Parameters
     ----------
-    config : uses its ``distance``, ``barrier`` and ``nmpc`` parts (and ``quadrotor`` when
-        ``model`` is omitted). The weights ``nmpc.q``, ``nmpc.r``, ``nmpc.t`` must have n_x,
-        n_u and p entries.
+    config : uses its ``distance``, ``barrier`` and ``nmpc`` parts and the LiDAR's range
+        ``sensor.range`` (and ``quadrotor`` when ``model`` is omitted); never the solver's
+        options (``solver``) or the mission (``simulation``). The weights ``nmpc.q``,
+        ``nmpc.r``, ``nmpc.t`` must have n_x, n_u and p entries.
     model : the vehicle (:class:`~paper_repro.vehicles.base.VehicleModel`); the quadrotor of
         ``config`` by default, whose 𝒳 × 𝒰 are ``config.nmpc``'s bounds.
 
@@ -91,8 +92,7 @@ class OCP:
         d = cfg.distance
         self.scan = ScanLayout(d.metric, d.eta, d.sigma, b.d_min, p.region_slots,
                                p.points_per_region, self.ny, d.window,
-                               cfg.simulation.lidar_range,
-                               getattr(cfg.simulation, "prediction", "static") != "static")
+                               cfg.sensor.range, p.prediction != "static")
         self.step = p.prediction_step
 
     # Cost terms, as residuals r whose squared norm is the term: the Gauss-Newton solver needs

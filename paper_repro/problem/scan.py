@@ -104,7 +104,7 @@ class ScanLayout:
         visible = check_visible(visible, dim)
         if velocities is not None and not self.moving:
             raise ValueError("velocities need a layout built for moving regions (a controller "
-                             "built with simulation.prediction 'oracle' or 'kalman')")
+                             "built with nmpc.prediction 'oracle' or 'kalman')")
         if velocities is None:
             velocities = [np.zeros(dim)] * len(visible)
         elif len(velocities) != len(visible):

@@ -75,7 +75,7 @@ def setup_hazards(config: Config, scene: Scene, model: VehicleModel | None = Non
 
     A point y is *unsafe* when, for some region, the barrier distance D(y) (the smoothed
     D_{η,σ} or ½·d², as ``distance.metric``) computed from that region's points within
-    ``simulation.lidar_range`` is below ``barrier.d_min``, or when its clearance to the nearest
+    ``sensor.range`` is below ``barrier.d_min``, or when its clearance to the nearest
     cloud point is below the rotor radius ``quadrotor.arm``.
 
     Returns
@@ -95,7 +95,7 @@ def setup_hazards(config: Config, scene: Scene, model: VehicleModel | None = Non
     check_setup(config, scene, model)
     points = scene.all_points
     tree = cKDTree(points) if len(points) else None
-    lidar = Lidar(list(scene.clouds), config.simulation.lidar_range, dim=scene.dim)
+    lidar = Lidar(list(scene.clouds), config.sensor.range, dim=scene.dim)
     arm, d_min = config.quadrotor.arm, config.barrier.d_min
 
     def assess(y):

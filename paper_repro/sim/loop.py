@@ -85,7 +85,7 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
 
     At step k (time t = k·T_s) the LiDAR sees each region where it is at t
     (:meth:`~paper_repro.world.lidar.Lidar.scan`), and the clearance is measured to the regions'
-    true positions at t. With ``simulation.prediction`` ``"static"`` (the paper) the
+    true positions at t. With ``nmpc.prediction`` ``"static"`` (the paper) the
     controller is called as ``ctl.solve(x, target, visible, previous=plan)``; with
     ``"oracle"`` or ``"kalman"`` it is also given ``velocities=``, one (3,) m/s per region of
     the scan: the regions' true velocities at t (:meth:`~paper_repro.world.lidar.Lidar.velocities`),
@@ -113,12 +113,12 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     hazards = setup_hazards(cfg, scene, model)
     for line in hazards["warnings"]:
         warnings.warn(f"{scene.name}: {line}", SetupHazardWarning, stacklevel=2)
-    lidar = Lidar(scene.clouds, sim.lidar_range, noise=cfg.sensor, motions=scene.motions,
+    lidar = Lidar(scene.clouds, cfg.sensor.range, noise=cfg.sensor, motions=scene.motions,
                   dim=scene.dim)
     plant = plant if plant is not None else plant_for(model, cfg)
     output = _output_map(model)
     truth = _TrueClearance(scene)
-    predict = _predictor(sim.prediction, lidar, ts)
+    predict = _predictor(cfg.nmpc.prediction, lidar, ts)
     ctl = controller or make_controller(cfg, model)
     ctl.reset()
     counters = _SolverCounters(ctl)
@@ -128,7 +128,7 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     stall_steps = int(np.ceil(sim.stall_time / ts))
 
     log = _Log(sim.max_steps, model.nx, model.nu,
-               None if sim.prediction == "static" else (len(scene.clouds), scene.dim))
+               None if cfg.nmpc.prediction == "static" else (len(scene.clouds), scene.dim))
     reached = np.full(len(targets), -1)
     target_index, slow, outcome = 0, 0, "step_limit"
     plan: NMPCSolution | None = None

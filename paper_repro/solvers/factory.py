@@ -17,17 +17,18 @@ from paper_repro.vehicles.base import VehicleModel
 
 def make_controller(config: Config | None = None, model: VehicleModel | None = None,
                     **options) -> Controller:
-    """The controller named by ``config.nmpc.solver``: ``"rti"`` (:class:`RealTimeNMPC`, with
-    ``nmpc.sqp_iterations``, ``nmpc.line_search`` and ``nmpc.qp_solver``) or ``"reference"``
-    (:class:`TrackingNMPC`).
+    """The controller named by ``config.solver.nlp_solver``: ``"rti"`` (:class:`RealTimeNMPC`,
+    with ``solver.sqp_iterations``, ``solver.line_search`` and ``solver.qp_solver``) or
+    ``"reference"`` (:class:`TrackingNMPC`).
 
     ``model`` : the vehicle (the quadrotor by default). ``options`` go to the controller's
     constructor (e.g. ``max_iter`` for IPOPT, ``capacities`` for the real-time solver).
     """
     config = config or Config()
-    if config.nmpc.solver == "reference":
+    s = config.solver
+    if s.nlp_solver == "reference":
         return TrackingNMPC(config, model, **options)
-    options.setdefault("max_iter", config.nmpc.sqp_iterations)
-    options.setdefault("qp_solver", config.nmpc.qp_solver)
-    options.setdefault("line_search", config.nmpc.line_search)
+    options.setdefault("max_iter", s.sqp_iterations)
+    options.setdefault("qp_solver", s.qp_solver)
+    options.setdefault("line_search", s.line_search)
     return RealTimeNMPC(config, model, **options)

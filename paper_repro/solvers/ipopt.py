@@ -80,7 +80,7 @@ class TrackingNMPC:
         previous : the plan of the previous sampling instant; the warm start is that plan
             shifted by one step (see :meth:`NMPCSolution.shifted`). Hover at the current
             position if omitted.
-        velocities : moving regions (a controller built with ``simulation.prediction`` other
+        velocities : moving regions (a controller built with ``nmpc.prediction`` other
             than ``"static"``): one (p,) predicted velocity per region of ``visible``, m/s;
             region i at stage j is the scanned cloud moved by velocities[i]·j·h.
         """

@@ -70,7 +70,7 @@ class RealTimeNMPC:
     capacities : smaller LiDAR capacities (points per region slot) compiled besides the
         config's ``points_per_region`` (see :class:`LinearisationLadder`; ``()``: the
         config's capacity only).
-    line_search : ``None`` (default): ``config.nmpc.line_search``. ``True``: the damped RTI,
+    line_search : ``None`` (default): ``config.solver.line_search``. ``True``: the damped RTI,
         which shortens a step that does not decrease the ℓ1 merit function enough and damps
         the next QPs after it (:class:`MeritLineSearch`); smoother than the paper's
         controller with the Euclidean metric. ``False``: every full step (the textbook
@@ -103,7 +103,7 @@ class RealTimeNMPC:
         self.ocp = ocp = OCP(config, model)
         self.config, self.horizon = ocp.config, ocp.horizon
         if line_search is None:
-            line_search = self.config.nmpc.line_search
+            line_search = self.config.solver.line_search
         self.max_iter, self.step_tol = max_iter, step_tol
         self.layout = QPLayout.of(ocp)
         self.ladder = LinearisationLadder(ocp, capacities, compile, values=line_search)

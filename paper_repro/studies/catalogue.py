@@ -188,7 +188,7 @@ def sensing_window(quick: bool = False, scenes: int | None = None,
                  f"smooth metric, sensing window w in {SENSING_WINDOWS} m, {n} passages")
 
 
-"""How the NMPC predicts a moving region (``SimulationParams.prediction``): not at all (the
+"""How the NMPC predicts a moving region (``NMPCParams.prediction``): not at all (the
 paper), with its true velocity, or with a Kalman filter on its visible centroid."""
 
 
@@ -199,16 +199,16 @@ def moving_obstacles(quick: bool = False, scenes: int | None = None,
     ``scenes`` passages (30; 2 with ``quick``). Does the static assumption collide where
     prediction does not?
 
-    Flown with the damped real-time iteration (``nmpc.line_search = True``): where a region
+    Flown with the damped real-time iteration (``solver.line_search = True``): where a region
     moves at the vehicle the full Gauss-Newton steps fall into a period-2 oscillation of the
     thrusts between their bounds that the converged controller (IPOPT) does not show, and the
     damped iteration stays within millimetres of IPOPT there (``benchmarks/fidelity.py``)."""
     n, base, steps = _passages(quick, scenes, 30, base)
-    base = dataclasses.replace(base, nmpc=dataclasses.replace(base.nmpc, line_search=True))
+    base = dataclasses.replace(base, solver=dataclasses.replace(base.solver, line_search=True))
     specs = []
     for prediction in PREDICTIONS:
-        cfg = dataclasses.replace(base, simulation=dataclasses.replace(
-            base.simulation, prediction=prediction))
+        cfg = dataclasses.replace(base, nmpc=dataclasses.replace(
+            base.nmpc, prediction=prediction))
         for metric in ("smooth", "euclidean"):
             for seed in range(n):
                 spec = passage_spec(seed, metric, max_steps=steps, base=cfg,

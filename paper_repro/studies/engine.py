@@ -236,14 +236,11 @@ def _warm(key: str) -> None:
 
 
 def controller_key(config: Config) -> str:
-    """What a controller depends on: the configuration without its ``sensor`` part and the
-    ``simulation`` fields that are the closed loop's (scene, run kind, limits). It keeps the
-    two the problem reads: ``prediction`` (moving regions carry velocities in the scan's
-    layout) and ``lidar_range`` (the sensing window's r_s)."""
-    sim = config.simulation
-    neutral = dataclasses.replace(
-        config, sensor=SensorParams(),
-        simulation=SimulationParams(prediction=sim.prediction, lidar_range=sim.lidar_range))
+    """What a controller depends on: the configuration without its mission (``simulation``:
+    scene, run kind, limits) and its sensor's imperfections. It keeps the one sensor setting
+    the problem reads, ``sensor.range`` (the sensing window's r_s)."""
+    neutral = dataclasses.replace(config, simulation=SimulationParams(),
+                                  sensor=SensorParams(range=config.sensor.range))
     return json.dumps(neutral.to_dict(), sort_keys=True, default=str)
 
 
@@ -262,7 +259,8 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
       ``name``) and ``timings.json`` (wall time, versions, commit, machine). A call that flew
       nothing (every run cached) keeps the ones already there when they are of the same runs:
       they record the flights, and a re-run that only loads the cache would record the
-      cache's speed as the study's.
+      cache's speed as the study's. Only where each run's result lives (``result_dir``) is
+      brought up to date, as when the cache has been re-keyed.
 
     :func:`load_table` joins the two again."""
     from paper_repro.evidence.golden import golden_hash
@@ -278,6 +276,8 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
             and _same_runs(out / "timings.csv", table))
     if not keep:
         _atomic(out / "timings.csv", lambda p: table[["name", *timing]].to_csv(p, index=False))
+    else:
+        _current_locations(out / "timings.csv", table)
     base = study.specs[0].config.to_dict()
     meta = {"name": study.name, "description": study.description,
             "runs": len(study.specs), "golden": golden_hash(), "base_config": base,
@@ -298,6 +298,20 @@ def _same_runs(timings: Path, table) -> bool:
     import pandas as pd
 
     return list(pd.read_csv(timings)["name"]) == list(table["name"])
+
+
+def _current_locations(timings: Path, table) -> None:
+    """Rewrite the ``result_dir`` column of ``timings`` (kept, of the same runs) with ``table``'s
+    where they differ; the timings themselves are left as they were measured."""
+    import pandas as pd
+
+    kept = pd.read_csv(timings, float_precision="round_trip")
+    if "result_dir" not in kept or "result_dir" not in table:
+        return
+    now = table["result_dir"].astype(str).to_numpy()
+    if list(kept["result_dir"].astype(str)) != list(now):
+        kept["result_dir"] = now
+        _atomic(timings, lambda p: kept.to_csv(p, index=False))
 
 
 def _atomic(path: Path, write) -> None:

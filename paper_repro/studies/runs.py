@@ -173,7 +173,7 @@ def ensure_result(spec: RunSpec, results_dir=None, force: bool = False,
 def _holds_what_it_needs(directory: Path, spec: RunSpec) -> bool:
     """A run that predicts moving regions carries the velocities it handed the controller
     (results saved before the loop logged them are flown again, once)."""
-    if spec.config.simulation.prediction == "static":
+    if spec.config.nmpc.prediction == "static":
         return True
     with np.load(directory / "result.npz") as z:
         return "region_velocities" in z.files

@@ -296,6 +296,7 @@ def tune(settings: TuningSettings | None = None, *, workers: int | None = None,
             study.enqueue_trial(printed_params(base, space))
         else:
             _check_stored(study, stored)
+            study.set_user_attr("base", stored["base"])  # the same base, in today's layout
         for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
             study.tell(t.number, state=optuna.trial.TrialState.FAIL)
             study.enqueue_trial(t.params)
@@ -342,9 +343,11 @@ def tune(settings: TuningSettings | None = None, *, workers: int | None = None,
         "study_name": study_name, "storage": _shown_storage(storage, out), "sampler": sampler,
         "seed": seed, "trials": len(finished_trials(study)), **stored,
         "space_why": {n: r.why for n, r in space.items()}})
-    # What the machine determines, apart (tuning.json is what the flights determine).
-    write_json(out / "timings.json", {"flown_trials_last_call": flown[0],
-                                       "wall_time_s_last_call": wall})
+    # What the machine determines, apart (tuning.json is what the flights determine). A call
+    # that ran no trial keeps the timings of the call that did (as a cached study does).
+    if flown[0] > 0 or not (out / "timings.json").is_file():
+        write_json(out / "timings.json", {"flown_trials_last_call": flown[0],
+                                           "wall_time_s_last_call": wall})
     return TuningResult(study, storage, train, out, flown[0], wall)
 
 
@@ -474,10 +477,16 @@ def _check_disjoint(seeds) -> None:
 
 
 def _check_stored(study, stored: dict) -> None:
-    """A resumed study must be the same study: same objectives, space, step limit and base."""
+    """A resumed study must be the same study: same objectives, space, step limit and base (a
+    base stored before a setting moved, :data:`~paper_repro.config.MOVED`, is read in the
+    current layout)."""
     for k in ("objectives", "space", "max_steps", "require_completion", "base"):
-        if k in study.user_attrs and json.loads(json.dumps(study.user_attrs[k])) != \
-                json.loads(json.dumps(stored[k])):
+        if k not in study.user_attrs:
+            continue
+        was = study.user_attrs[k]
+        if k == "base":
+            was = Config.from_dict(was).to_dict()
+        if json.loads(json.dumps(was, default=str)) != json.loads(json.dumps(stored[k])):
             raise ValueError(f"{k}: the stored study {study.study_name!r} was run with "
                              f"{study.user_attrs[k]!r}, not {stored[k]!r}; use another "
                              "--storage or study name")

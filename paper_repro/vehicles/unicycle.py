@@ -55,7 +55,8 @@ def unicycle_config(metric: str = "smooth", solver: str = "rti") -> Config:
     base = Config()
     nmpc = dataclasses.replace(
         NMPCParams(), horizon=30, ts=0.05, q=(1.0, 1.0, 0.1), r=(1.0, 0.5), t=(20.0, 20.0),
-        solver=solver, region_slots=1, points_per_region=96)
+        region_slots=1, points_per_region=96)
     return dataclasses.replace(
         base, nmpc=nmpc, barrier=BarrierParams(d_min=0.32, mu=1e3),
+        solver=dataclasses.replace(base.solver, nlp_solver=solver),
         distance=dataclasses.replace(base.distance, metric=metric))
