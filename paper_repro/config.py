@@ -117,6 +117,13 @@ class BarrierParams:
         ``"definition"`` uses g = δ·β_j − β_{j+1}, the form that matches Definition 1
         (β_{k+1} ≥ δ·β_k). The two differ: with δ = 0.95 the printed form lets β decay
         by at most 95 % per step, the definition form by at most 5 %.
+    reaction_time : t_r, s, *chosen* 0 (off: the paper). For a region predicted to move
+        (``nmpc.prediction`` ``"oracle"`` or ``"kalman"``) at velocity v, the safe distance
+        √(2·d_min) grows by ‖v‖·t_r, the way the region covers in t_r: β = D −
+        ½(√(2·d_min) + ‖v‖·t_r)². The CBF then starts the escape while the region is further
+        off, in proportion to its speed, where the 0.35 s prediction alone sees it too late.
+        A region at rest, and every region under the paper's static prediction, keeps
+        β = D − d_min.
     """
 
     delta: float = 0.95
@@ -125,6 +132,7 @@ class BarrierParams:
     epsilon: float = 2.0
     mu: float = 5e4
     form: str = "printed"
+    reaction_time: float = 0.0
 
     def __post_init__(self):
         if not (is_number(self.delta) and 0.0 < self.delta < 1.0):
@@ -139,6 +147,10 @@ class BarrierParams:
                 f"where the penalty is zero), got {self.epsilon!r}"
             )
         require_choice("form", self.form, ("printed", "definition"))
+        if not (is_number(self.reaction_time) and math.isfinite(self.reaction_time)
+                and self.reaction_time >= 0):
+            raise ValueError(f"reaction_time must be a finite number >= 0 (s; 0 is off), got "
+                             f"{self.reaction_time!r}")
 
     @property
     def decay(self) -> float:
@@ -425,6 +437,11 @@ class Config:
             raise ValueError(f"distance.window must be < sensor.range = "
                              f"{self.sensor.range} m (a window as wide as the range "
                              f"sees nothing at full weight), got {self.distance.window!r}")
+        if self.barrier.reaction_time > 0 and self.nmpc.prediction == "static":
+            raise ValueError("barrier.reaction_time needs nmpc.prediction 'oracle' or 'kalman': "
+                             "the static prediction (the paper's) hands the problem no region "
+                             f"velocity to grow the margin with, got reaction_time "
+                             f"{self.barrier.reaction_time!r}")
         # Cross-field: the artificial equilibrium (hover at rest, eq. 7) must exist in
         # λ(𝒳 × 𝒰), or the OCP is infeasible at every step.
         xl, xu, ul, uu = self.nmpc.relaxed_bounds()

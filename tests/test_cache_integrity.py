@@ -151,3 +151,63 @@ def test_a_damaged_tuning_storage_is_moved_aside_and_the_study_starts_anew(tmp_p
     assert (out / "tuning.db.damaged").read_bytes().startswith(b"not a database")
     assert sum("damaged storage" in line and "tuning.db" in line for line in lines) == 1
     assert len(finished_trials(res.study)) == 1
+
+
+# --- re-keying the cache after a layout change that moves no flight ---------------------------
+
+def _former_layout(config: dict) -> dict:
+    """``config`` as the code before the solver options moved wrote it."""
+    old = json.loads(json.dumps(config, default=str))
+    solver = old.pop("solver")
+    old["nmpc"].update(solver=solver["nlp_solver"], sqp_iterations=solver["sqp_iterations"],
+                       line_search=solver["line_search"], qp_solver=solver["qp_solver"])
+    old["simulation"].update(lidar_range=old["sensor"].pop("range"),
+                             prediction=old["nmpc"].pop("prediction"))
+    return old
+
+
+def _as_written_by_former_code(folder, golden):
+    """Rewrite a cached run as the former code left it: its config in the former layout,
+    its folder named by the key that code computed."""
+    import hashlib
+
+    from paper_repro.sim.result import write_manifest
+
+    payload = json.loads((folder / "config.json").read_text())
+    payload["config"] = _former_layout(payload["config"])
+    (folder / "config.json").write_text(json.dumps(payload, indent=2))
+    write_manifest(folder)
+    spec_config = json.loads(json.dumps(payload["config"]))
+    spec_config["simulation"]["max_steps"] = Config().simulation.max_steps
+    text = json.dumps({"config": spec_config, "max_steps": SPEC.max_steps,
+                       "scene": payload["scene"]["fingerprint"], "golden": golden},
+                      sort_keys=True, separators=(",", ":"))
+    old = folder.with_name(f"{SPEC.name}-{hashlib.sha256(text.encode()).hexdigest()[:12]}")
+    folder.rename(old)
+    return old
+
+
+def test_rekey_keeps_a_result_of_the_former_layout_and_only_one_it_can_prove(tmp_path):
+    """A result written under the former layout is moved to today's key, loads as the same
+    run, and is not flown again; one whose key it cannot prove (another golden set: another
+    code's flight) stays where it is and is flown again."""
+    from paper_repro.evidence.golden import golden_hash
+    from paper_repro.studies.runs import rekey
+
+    runs = tmp_path / "runs"
+    out, flown = ensure_result(SPEC, runs, progress=False)
+    assert flown
+    before = SimulationResult.load(out)
+    old = _as_written_by_former_code(out, golden_hash())
+    assert not out.exists()
+    assert rekey(runs) == {"moved": 1, "current": 0, "unproven": 0, "duplicate": 0,
+                           "damaged": 0}
+    again, flown = ensure_result(SPEC, runs, progress=False)
+    assert again == out and not flown and not old.exists()
+    after = SimulationResult.load(again)
+    assert after.config == before.config and np.array_equal(after.x, before.x)
+    assert rekey(runs)["current"] == 1  # a second call moves nothing
+
+    other = _as_written_by_former_code(again, "another-golden-set")
+    assert rekey(runs)["unproven"] == 1 and other.exists()
+    assert ensure_result(SPEC, runs, progress=False)[1]  # flown again, under today's key

@@ -58,8 +58,18 @@ def test_the_help_lists_every_command():
                           capture_output=True, text=True, check=True).stdout
     for name in COMMANDS:
         assert name in text
-    assert set(COMMANDS) == {"run", "scene", "reproduce", "study", "tune", "golden", "readme",
-                             "book"}
+    assert set(COMMANDS) == {"run", "scene", "reproduce", "study", "tune", "golden", "cache",
+                             "readme", "book"}
+
+
+def test_cache_rekey_reports_each_folder_and_refuses_what_it_cannot_do(tmp_path, capsys):
+    assert cli.main(["cache", "--rekey", str(tmp_path)]) == 0
+    assert capsys.readouterr().out.strip() == (f"{tmp_path}: 0 moved, 0 current, 0 unproven, "
+                                                "0 duplicate, 0 damaged")
+    assert cli.main(["cache", str(tmp_path)]) == 2
+    assert "--rekey" in capsys.readouterr().err
+    assert cli.main(["cache", "--rekey", str(tmp_path / "nowhere")]) == 2
+    assert "DIR must be a folder" in capsys.readouterr().err
 
 
 def _subparser(name):

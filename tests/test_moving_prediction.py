@@ -15,6 +15,7 @@ from paper_repro import (
     SolverParams,
     make_scene,
 )
+from paper_repro.config import BarrierParams
 from paper_repro.problem.distance import smooth_distance
 from paper_repro.problem.ocp import OCP
 from paper_repro.problem.scan import ScanLayout
@@ -47,6 +48,39 @@ def test_a_rigid_translation_shifts_the_query():
         query = rng.normal(size=3)
         moved = smooth_distance(query, cloud + v * t, 0.3, 0.8)
         assert float(fn(query, packed, t)) + 1.0 == pytest.approx(moved, rel=1e-12)
+
+
+@pytest.mark.parametrize("metric", ["smooth", "euclidean"])
+def test_the_reaction_margin_grows_with_the_regions_speed_only(metric):
+    """β = D − ½(√(2·d_min) + ‖v‖·t_r)²: the safe distance lengthened by the way the region
+    covers in t_r; a region at rest keeps the paper's β = D − d_min, and t_r = 0 is the
+    paper's barrier whatever the speed."""
+    rng = np.random.default_rng(5)
+    cloud = rng.uniform(-1.0, 1.0, size=(10, 3)) + [2.5, 0.0, 0.0]
+    d_min, t_r = 1.0, 0.8
+    plain = ScanLayout(metric, 0.3, 0.8, d_min, slots=1, capacity=16, moving=True)
+    widened = dataclasses.replace(plain, reaction_time=t_r)
+    y = ca.SX.sym("y", 3)
+    fns = {}
+    for name, layout in (("plain", plain), ("widened", widened)):
+        params, beta, _ = layout.region_barrier()
+        fns[name] = ca.Function(name, [y, params], [beta(y, 0.0)])
+    query = np.array([0.3, 0.2, -0.1])
+    for v in (np.zeros(3), np.array([0.6, -0.8, 0.0]), np.array([1.5, 0.0, 0.3])):
+        packed = plain.pack([cloud], np.zeros(3), [v])
+        b0, b1 = float(fns["plain"](query, packed)), float(fns["widened"](query, packed))
+        margin = 0.5 * (np.sqrt(2 * d_min) + np.linalg.norm(v) * t_r) ** 2
+        assert b1 == pytest.approx(b0 + d_min - margin, rel=1e-12, abs=1e-12)
+        assert (b1 == pytest.approx(b0, abs=1e-12)) == (np.linalg.norm(v) == 0)
+
+
+def test_a_reaction_margin_needs_a_prediction_that_hands_velocities():
+    with pytest.raises(ValueError, match=r"^barrier.reaction_time needs nmpc.prediction"):
+        Config(barrier=BarrierParams(reaction_time=1.0))
+    with pytest.raises(ValueError, match="^reaction_time must be a finite number >= 0"):
+        BarrierParams(reaction_time=-0.5)
+    cfg = Config(barrier=BarrierParams(reaction_time=1.0), nmpc=NMPCParams(prediction="kalman"))
+    assert OCP(cfg).scan.reaction_time == 1.0
 
 
 def test_velocities_are_checked_before_the_solve():

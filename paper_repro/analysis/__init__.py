@@ -4,6 +4,7 @@
 ``metrics``        chattering, tracking error, clearance, one summary row per run
 ``statistics``     rates, paired differences, bootstrap intervals over a study table
 ``clock``          the tracking NMPC at hover as an LQ problem: time constants, mission time
+``avoidability``   could a vehicle as agile as the quadrotor fly a moving scene clear at all
 =================  ==================================================================
 """
 

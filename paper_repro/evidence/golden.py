@@ -218,6 +218,8 @@ EVIDENCE_SETS = (
     "throughput", "throughput/profile",  # benchmarks/throughput.py, profile_step.py --save
     "studies/monte_carlo", "studies/eta_sweep", "studies/sensor_noise",
     "studies/sensing_window", "studies/moving_obstacles", "studies/moving_obstacles_definition",
+    "studies/avoidability",  # benchmarks/avoidability.py --save
+    "studies/moving_levers",  # benchmarks/moving_levers.py --save
     "tuning",  # tune
 )
 """Every committed evidence set, as a folder under ``figures/``."""

@@ -235,6 +235,45 @@ def moving_obstacles() -> str:
                       "TV of u, median", "completed", "failed solves"], rows)
 
 
+def avoidability() -> str:
+    """``figures/studies/avoidability/avoidability.csv``: the crossings a point mass with the
+    quadrotor's bounds and full foresight flies clear."""
+    from scipy import stats
+
+    table = pd.read_csv(paths.figures_dir() / "studies" / "avoidability" / "avoidability.csv")
+    k, n = int(table["avoidable"].sum()), len(table)
+    ci = stats.binomtest(k, n).proportion_ci(0.95, method="exact")
+    found = table[table["avoidable"]]
+    verdict = ("\n\nEvery crossing has a passage: every collision of the study counts against "
+               "the controller." if k == n else
+               f"\n\nNo passage found for crossing(s) "
+               f"{', '.join(str(s) for s in table.loc[~table['avoidable'], 'scene_seed'])}: "
+               "their collisions are not counted against the controller.")
+    paced = table.dropna(subset=["study_time_s"])
+    k_p = int((paced["at_pace_outcome"] == "avoidable").sum())
+    return markdown_table(
+        ["crossings", "avoidable", "no passage found", "clearance of the passages found",
+         "first guess that found them", "avoidable within the study's time"],
+        [[f"{n}", f"{k}/{n} [{100 * ci.low:.0f}, {100 * ci.high:.0f}] %", f"{n - k}",
+          f"{found['clearance_m'].min():.2f} to {found['clearance_m'].max():.2f} m",
+          ", ".join(f"{g} ({c})" for g, c in found["guess"].value_counts().items()),
+          f"{k_p}/{len(paced)} (the study's crossings; closest approach "
+          f"{paced['at_pace_clearance_m'].min():.2f} m)"]]) + verdict
+
+
+def moving_levers() -> str:
+    """``figures/studies/moving_levers/levers.csv``: each lever on the crossings."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "moving_levers" / "levers.csv")
+    rows = [[r.scenes, r.lever, r.prediction, r.metric, f"{r.encounters}/{r.runs}",
+             f"{r.collisions}/{r.runs} [{100 * r.collision_low:.0f}, "
+             f"{100 * r.collision_high:.0f}] %", f"{r.min_clearance_m:.3f} m",
+             f"{r.tv_u_rate_median_N_per_s:.3g} N/s", f"{r.failed_solves:,}",
+             f"{r.time_to_complete_median_s:.0f} s"] for r in table.itertuples()]
+    return markdown_table(["crossings", "lever", "prediction", "metric", "a region in range",
+                           "collisions", "closest approach", "TV of u, median",
+                           "failed solves", "time, median"], rows)
+
+
 def timeline() -> str:
     """``figures/studies/timeline/timeline_flights.csv``: the candidates flown."""
     table = pd.read_csv(paths.figures_dir() / "studies" / "timeline" / "timeline_flights.csv")
@@ -356,7 +395,8 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "throughput": throughput,
     "monte_carlo": monte_carlo,
     "eta_sweep": eta_sweep, "sensor_noise": sensor_noise, "sensing_window": sensing_window,
-    "moving_obstacles": moving_obstacles, "timeline": timeline, "tuning": tuning}
+    "moving_obstacles": moving_obstacles, "avoidability": avoidability,
+    "moving_levers": moving_levers, "timeline": timeline, "tuning": tuning}
 """Every generated block of the README, by name."""
 
 _BLOCK = re.compile(r"(<!-- begin (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-- end (?P=name) -->)",

@@ -92,7 +92,8 @@ class OCP:
         d = cfg.distance
         self.scan = ScanLayout(d.metric, d.eta, d.sigma, b.d_min, p.region_slots,
                                p.points_per_region, self.ny, d.window,
-                               cfg.sensor.range, p.prediction != "static")
+                               cfg.sensor.range, p.prediction != "static",
+                               b.reaction_time)
         self.step = p.prediction_step
 
     # Cost terms, as residuals r whose squared norm is the term: the Gauss-Newton solver needs

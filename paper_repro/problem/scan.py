@@ -45,6 +45,10 @@ class ScanLayout:
     window : w, m (0: off).  sensor_range : r_s, m.
     moving : each slot also carries the region's predicted velocity v (p,), m/s, after
         ``active``; the region at τ s after the scan is the scanned cloud moved by v·τ.
+    reaction_time : t_r, s (0: off), with ``moving`` only. The margin of a moving region grows
+        with its speed: β = D − ½(√(2·d_min) + ‖v‖·t_r)², the safe distance √(2·d_min)
+        lengthened by the way the region covers in t_r (see
+        :class:`~paper_repro.config.BarrierParams`). A region at rest keeps β = D − d_min.
     """
 
     metric: str
@@ -57,6 +61,7 @@ class ScanLayout:
     window: float = 0.0
     sensor_range: float = 3.0
     moving: bool = False
+    reaction_time: float = 0.0
 
     @property
     def size(self) -> int:
@@ -180,7 +185,13 @@ class ScanLayout:
             return params, lambda yy, tau=0.0: beta_fn(yy, pts, *extra), active
         velocity = ca.SX.sym("velocity", dim)
         params = ca.vertcat(ca.vec(pts), *extra, active, velocity)
-        return params, lambda yy, tau=0.0: beta_fn(yy - velocity * tau, pts, *extra), active
+        if self.reaction_time == 0:
+            return params, lambda yy, tau=0.0: beta_fn(yy - velocity * tau, pts, *extra), active
+        # ‖v‖ of a parameter: never differentiated, so its kink at v = 0 does not matter.
+        reach = ca.sqrt(2.0 * self.d_min) + ca.norm_2(velocity) * self.reaction_time
+        widened = 0.5 * reach**2 - self.d_min
+        return (params,
+                lambda yy, tau=0.0: beta_fn(yy - velocity * tau, pts, *extra) - widened, active)
 
     def barriers(self):
         """Every slot at once: ``(params, beta, active)`` with ``params`` the scan's parameter

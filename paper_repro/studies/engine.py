@@ -305,7 +305,7 @@ def _current_locations(timings: Path, table) -> None:
     where they differ; the timings themselves are left as they were measured."""
     import pandas as pd
 
-    kept = pd.read_csv(timings, float_precision="round_trip")
+    kept = pd.read_csv(timings)
     if "result_dir" not in kept or "result_dir" not in table:
         return
     now = table["result_dir"].astype(str).to_numpy()

@@ -88,8 +88,76 @@ def run_key(config: Config, max_steps: int, scene_fingerprint: str) -> str:
     the golden hash (the code's behaviour)."""
     from paper_repro.evidence.golden import golden_hash
 
-    payload = {"config": config.to_dict(), "max_steps": int(max_steps),
-               "scene": scene_fingerprint, "golden": golden_hash()}
+    return _hash({"config": config.to_dict(), "max_steps": int(max_steps),
+                  "scene": scene_fingerprint, "golden": golden_hash()})
+
+
+def rekey(results_dir=None) -> dict:
+    """Move each cached run to the folder today's code keys it by, after a change of the
+    configuration's layout that moves no flight (a setting added with a default, or moved to
+    another part, :data:`~paper_repro.config.MOVED`): the cache is kept instead of flown again.
+
+    A folder ``<name>-<key>`` is moved only when ``key`` is proven to be its run's key *as
+    computed when it was written*: the SHA-256 of its stored configuration (as saved; with the
+    step limit of the config or the default one), its stored scene fingerprint and today's
+    golden hash. A result flown by code whose golden flights differ does not pass that test and
+    stays where it is (today's code will fly its run again). A moved folder's ``config.json``
+    is rewritten in today's layout, with its manifest.
+
+    A folder whose run already has a folder under today's key (flown again meanwhile) is left
+    as it is, and so is a damaged one (:func:`usable_or_set_aside` deals with those).
+
+    Returns the counts ``{"moved", "current", "unproven", "duplicate", "damaged"}``.
+    """
+    from paper_repro.evidence.golden import golden_hash
+    from paper_repro.sim.result import DamagedResult, verify_result, write_manifest
+
+    root = Path(results_dir) if results_dir is not None else paths.results_dir() / "runs"
+    golden, default_steps = golden_hash(), Config().simulation.max_steps
+    counts = {"moved": 0, "current": 0, "unproven": 0, "duplicate": 0, "damaged": 0}
+    for d in sorted(p for p in root.iterdir() if p.is_dir()) if root.is_dir() else ():
+        name, _, key = d.name.rpartition("-")
+        if len(key) != HASH_LENGTH or not (d / "config.json").is_file():
+            continue
+        try:
+            verify_result(d)
+        except DamagedResult:
+            counts["damaged"] += 1
+            continue
+        payload = json.loads((d / "config.json").read_text())
+        saved, scene = payload["config"], payload["scene"]["fingerprint"]
+        steps = saved["simulation"]["max_steps"]
+        written = None
+        for spec_steps in dict.fromkeys((steps, default_steps)):
+            candidate = json.loads(json.dumps(saved))
+            candidate["simulation"]["max_steps"] = spec_steps
+            if _hash({"config": candidate, "max_steps": int(steps), "scene": scene,
+                      "golden": golden})[:HASH_LENGTH] == key:
+                written = candidate
+        if written is None:
+            counts["unproven"] += 1
+            continue
+        new = run_key(Config.from_dict(written), steps, scene)[:HASH_LENGTH]
+        today = json.loads(json.dumps(Config.from_dict(saved).to_dict(), default=str))
+        if new == key and today == saved:
+            counts["current"] += 1
+            continue
+        target = d.with_name(f"{name}-{new}")
+        if target != d and target.exists():  # flown again meanwhile: that copy is the cache's
+            counts["duplicate"] += 1
+            continue
+        payload["config"] = today
+        tmp = d / ".config.json.rekey"
+        tmp.write_text(json.dumps(payload, indent=2, default=str) + "\n")
+        os.replace(tmp, d / "config.json")
+        write_manifest(d)
+        if target != d:
+            os.replace(d, target)
+        counts["moved"] += 1
+    return counts
+
+
+def _hash(payload: dict) -> str:
     text = json.dumps(payload, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode()).hexdigest()
 

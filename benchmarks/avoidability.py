@@ -1,0 +1,83 @@
+"""Which moving crossings could be flown clear at all? The avoidability check on each crossing.
+
+    python benchmarks/avoidability.py [--seeds 0-49] [--save]
+
+For each random crossing (``make_scene("random-crossing", seed)``), a point mass with the
+quadrotor's velocity and tilt-limited acceleration bounds and full foresight searches for a
+passage from the start to the finish line within the study's step limit that keeps 0.35 m from
+every region, the regions solid (:func:`paper_repro.analysis.avoidability.find_passage`).
+The same search is repeated within the time the study's fastest predicted run of the crossing
+took (``at_pace_*``): could it have been flown clear without being slower than the controller?
+Prints one row per crossing and the share of avoidable ones; ``--save`` writes
+``figures/studies/avoidability/avoidability.csv``, stamped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import pandas as pd
+from scipy import stats
+
+from paper_repro import Config, make_scene, paths
+from paper_repro.analysis.avoidability import find_passage, passage_row
+from paper_repro.evidence.golden import stamp
+from paper_repro.studies.catalogue import PASSAGE_STEPS
+
+
+def _seeds(text: str) -> list[int]:
+    lo, _, hi = text.partition("-")
+    return list(range(int(lo), int(hi or lo) + 1))
+
+
+def _study_pace() -> dict:
+    """Crossing seed → the shortest time to the finish line among the moving-obstacle study's
+    oracle and Kalman runs of it (s), from its committed table."""
+    path = paths.figures_dir() / "studies" / "moving_obstacles" / "table.parquet"
+    if not path.is_file():
+        return {}
+    t = pd.read_parquet(path)
+    t = t[t["prediction"].isin(("oracle", "kalman")) & t["completed"].astype(bool)]
+    return {int(k): float(v) for k, v in t.groupby("scene_seed")["time_to_complete_s"].min()
+            .items()}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seeds", default="0-49", help="crossing seeds, a range like 0-49")
+    parser.add_argument("--save", action="store_true")
+    args = parser.parse_args()
+    horizon = PASSAGE_STEPS * Config().nmpc.ts
+    pace = _study_pace()
+    rows = []
+    for seed in _seeds(args.seeds):
+        t0 = time.perf_counter()
+        scene = make_scene("random-crossing", seed)
+        passage = find_passage(scene, horizon)
+        row = passage_row(seed, passage)
+        # The same question at the controller's own pace: finish no later than the fastest of
+        # the study's predicted runs of this crossing did.
+        row["study_time_s"] = pace.get(seed, float("nan"))
+        if seed in pace:
+            at_pace = find_passage(scene, pace[seed])
+            row.update(at_pace_outcome=at_pace.outcome, at_pace_clearance_m=at_pace.clearance)
+        rows.append(row)
+        print(f"crossing {seed:3d}: {passage.outcome:17s} clearance {passage.clearance:6.3f} m, "
+              f"finish at {passage.time:6.1f} s, guess {passage.guess or '-'}; within "
+              f"{row['study_time_s']:.1f} s: {row.get('at_pace_outcome', '-')} "
+              f"({time.perf_counter() - t0:.1f} s)", flush=True)
+    table = pd.DataFrame(rows)
+    k, n = int(table["avoidable"].sum()), len(table)
+    ci = stats.binomtest(k, n).proportion_ci(0.95, method="exact")
+    print(f"avoidable: {k}/{n} [{ci.low:.2f}, {ci.high:.2f}] (95 % Clopper-Pearson)")
+    if args.save:
+        out = paths.figures_dir() / "studies" / "avoidability"
+        out.mkdir(parents=True, exist_ok=True)
+        table.to_csv(out / "avoidability.csv", index=False, float_format="%.6g")
+        stamp(out, f"python benchmarks/avoidability.py --save --seeds {args.seeds}")
+
+
+if __name__ == "__main__":
+    main()
