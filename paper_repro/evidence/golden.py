@@ -215,6 +215,7 @@ EVIDENCE_SETS = (
     "fidelity",  # benchmarks/fidelity.py
     "ground_robot",  # benchmarks/ground_robot.py
     "solver_speed/encounter", "solver_speed/crossing",  # benchmarks/solver_speed.py --save
+    "solver_speed/swept_pillar",  # benchmarks/swept_pillar.py --save
     "throughput", "throughput/profile",  # benchmarks/throughput.py, profile_step.py --save
     "studies/monte_carlo", "studies/eta_sweep", "studies/sensor_noise",
     "studies/sensing_window", "studies/moving_obstacles", "studies/moving_obstacles_definition",
