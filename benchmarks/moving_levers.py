@@ -67,6 +67,20 @@ def lever_study(name: str, seeds, max_steps: int = PASSAGE_STEPS) -> Study:
     return Study(f"moving-levers-{name}", tuple(specs), f"lever {name} on the crossings")
 
 
+def static_study(name: str, seeds, max_steps: int = PASSAGE_STEPS) -> Study:
+    """Lever ``name`` on the static random passages of ``seeds`` (the Monte Carlo study's
+    scenes), with the default solver and the paper's static prediction: does it keep the
+    static scenes clear, and does it stall them? ``none`` is the Monte Carlo study's runs."""
+    cfg, tag = LEVERS[name](Config()), ("" if name == "none" else f"lever-{name}")
+    specs = []
+    for metric in ("smooth", "euclidean"):
+        for seed in seeds:
+            spec = passage_spec(seed, metric, max_steps=max_steps, base=cfg, tag=tag)
+            specs.append(dataclasses.replace(spec, labels=spec.labels + (
+                ("prediction", "static"), ("lever", name))))
+    return Study(f"static-levers-{name}", tuple(specs), f"lever {name} on static passages")
+
+
 def summary(table: pd.DataFrame) -> pd.DataFrame:
     """Per lever, prediction and metric: collisions and completions with 95 % Clopper–Pearson
     intervals, the minimum clearance, the median chattering and the failed solves."""
@@ -82,7 +96,8 @@ def summary(table: pd.DataFrame) -> pd.DataFrame:
                      "encounters": int((g["min_clearance_m"] < Config().sensor.range).sum()),
                      "collisions": int(col["k"]),
                      "collision_low": col["low"], "collision_high": col["high"],
-                     "completed": int(done["k"]), "min_clearance_m": g["min_clearance_m"].min(),
+                     "completed": int(done["k"]), "stalled": int(g["stalled"].sum()),
+                     "min_clearance_m": g["min_clearance_m"].min(),
                      "tv_u_rate_median_N_per_s": g["tv_u_rate_N_per_s"].median(),
                      "failed_solves": int(g["failed_solves"].sum()),
                      "time_to_complete_median_s": g["time_to_complete_s"].median()})
@@ -107,16 +122,23 @@ def main() -> None:
                         help="a second set of seeds (e.g. all the study's, 0-29) ...")
     parser.add_argument("--full-levers", nargs="+", default=[], choices=list(LEVERS),
                         help="... flown by these levers (the table's `scenes` tells the two)")
+    parser.add_argument("--static-seeds", default=None,
+                        help="static random passages (the Monte Carlo study's scenes) on which "
+                             "the --full-levers fly too, with the paper's static prediction")
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--save", action="store_true")
     args = parser.parse_args()
     groups = [(args.seeds, name) for name in args.levers]
     if args.full_seeds:
         groups += [(args.full_seeds, name) for name in args.full_levers]
+    if args.static_seeds:
+        groups += [(f"static {args.static_seeds}", name) for name in args.full_levers]
     tables, timings = [], []
     for scenes, name in groups:
-        result = S.run_study(lever_study(name, _seeds(scenes)),
-                             out=paths.results_dir() / "levers" / f"{name}-{scenes}",
+        study = (static_study(name, _seeds(scenes.split()[1])) if scenes.startswith("static")
+                 else lever_study(name, _seeds(scenes)))
+        folder = f"{name}-{scenes}".replace(" ", "-")
+        result = S.run_study(study, out=paths.results_dir() / "levers" / folder,
                              workers=args.workers, runs_dir=paths.results_dir() / "runs",
                              progress=False)
         t = result.table.assign(scenes=scenes)
@@ -132,6 +154,7 @@ def main() -> None:
         pd.concat(timings).to_csv(out / "timings.csv", index=False, float_format="%.4g")
         full = (f" --full-seeds {args.full_seeds} --full-levers {' '.join(args.full_levers)}"
                 if args.full_seeds else "")
+        full += f" --static-seeds {args.static_seeds}" if args.static_seeds else ""
         stamp(out, f"python benchmarks/moving_levers.py --save --seeds {args.seeds} --levers "
                    f"{' '.join(args.levers)}{full}")
 

@@ -280,10 +280,11 @@ def moving_levers() -> str:
     rows = [[r.scenes, r.lever, r.prediction, r.metric, f"{r.encounters}/{r.runs}",
              f"{r.collisions}/{r.runs} [{100 * r.collision_low:.0f}, "
              f"{100 * r.collision_high:.0f}] %", f"{r.min_clearance_m:.3f} m",
-             f"{r.tv_u_rate_median_N_per_s:.3g} N/s", f"{r.failed_solves:,}",
-             f"{r.time_to_complete_median_s:.0f} s"] for r in table.itertuples()]
+             f"{r.stalled}/{r.runs}", f"{r.tv_u_rate_median_N_per_s:.3g} N/s",
+             f"{r.failed_solves:,}", f"{r.time_to_complete_median_s:.0f} s"]
+            for r in table.itertuples()]
     return markdown_table(["crossings", "lever", "prediction", "metric", "a region in range",
-                           "collisions", "closest approach", "TV of u, median",
+                           "collisions", "closest approach", "stalled", "TV of u, median",
                            "failed solves", "time, median"], rows)
 
 
