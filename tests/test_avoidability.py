@@ -90,6 +90,7 @@ def test_a_wall_sweeping_over_the_start_faster_than_the_uav_is_unavoidable():
     (dict(horizon=0.0), "horizon"), (dict(horizon=10.0, dt=-1.0), "dt"),
     (dict(horizon=10.0, margin=-0.1), "margin"), (dict(horizon=10.0, rounds=0), "rounds"),
     (dict(horizon=10.0, guesses=("sideways",)), "guesses"),
+    (dict(horizon=10.0, margin=True), "margin"), (dict(horizon=10.0, solid="yes"), "solid"),
 ])
 def test_bad_arguments_are_refused_before_any_solve(kwargs, name):
     with pytest.raises(ValueError, match=name):

@@ -49,6 +49,16 @@ def test_motion_interpolates_and_extrapolates(t, offset, velocity):
     assert ZIGZAG.offset(t).shape == ZIGZAG.velocity(t).shape == (3,)
 
 
+def test_offsets_at_many_times_are_the_offsets_one_at_a_time():
+    """The vectorised c(t) is :meth:`Motion.offset` bit for bit, breakpoints, the time before
+    the first and the extrapolation after the last included; a bad time array is named."""
+    t = np.array([-1.0, 0.0, 0.7, 2.0, 3.3, 4.0, 6.5, 1e3])
+    for m in (ZIGZAG, Motion.constant((0.5, -1.0, 0.2)), Motion((3.0,), ((1.0, 1.0, 1.0),))):
+        np.testing.assert_array_equal(m.offsets_at(t), np.array([m.offset(s) for s in t]))
+    with pytest.raises(ValueError, match="^times t must be a 1-D array of finite numbers"):
+        ZIGZAG.offsets_at(np.array([0.0, np.nan]))
+
+
 def test_motion_constant_and_single_time():
     """Motion.constant(v, c0): c(t) = c0 + v·t for t ≥ 0; a single time is at rest for ever;
     the stored values are plain floats, and a Motion round-trips through JSON."""

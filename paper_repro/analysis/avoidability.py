@@ -42,7 +42,7 @@ from scipy.spatial import cKDTree
 
 from paper_repro.analysis.metrics import COLLISION_CLEARANCE
 from paper_repro.config import Config
-from paper_repro.validation import require_int, require_positive
+from paper_repro.validation import is_number, require_int, require_positive
 
 FINE_STEP = 0.01
 """s: the check of a passage samples p(t) at this step (the controller's T_s)."""
@@ -138,9 +138,11 @@ def find_passage(scene, horizon: float, config: Config | None = None, dt: float 
     require_positive("horizon", horizon)
     require_positive("dt", dt)
     require_positive("clearance", clearance)
-    if not (isinstance(margin, (int, float)) and math.isfinite(margin) and margin >= 0):
+    if not (is_number(margin) and math.isfinite(margin) and margin >= 0):
         raise ValueError(f"margin must be a finite number >= 0 (m), got {margin!r}")
     require_int("rounds", rounds, 1)
+    if not isinstance(solid, bool):
+        raise ValueError(f"solid must be True or False, got {solid!r}")
     names = tuple(GUESSES) if guesses is None else tuple(guesses)
     unknown = [g for g in names if g not in GUESSES]
     if unknown or not names:
@@ -235,7 +237,7 @@ class _Problem:
         for i, tree in enumerate(self.trees):
             if len(self.clouds[i]) == 0:
                 continue
-            shift = np.array([self.offset(i, float(s)) for s in t]) if self.motions[i] else 0.0
+            shift = self.motions[i].offsets_at(t) if self.motions[i] else 0.0
             dist[:, i], index[:, i] = tree.query(p - shift)
         return dist, index
 

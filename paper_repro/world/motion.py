@@ -79,6 +79,20 @@ class Motion:
             return self._c[0].copy()
         return self._c[i] + self._v[i] * (float(t) - self._t[i])
 
+    def offsets_at(self, t) -> np.ndarray:
+        """c(t) for many times at once: ``t`` (n,) s → (n, 3) m, each row :meth:`offset` of
+        that time (the same arithmetic, without a Python loop)."""
+        t = np.asarray(t, float)
+        if t.ndim != 1 or not np.all(np.isfinite(t)):
+            raise ValueError(f"times t must be a 1-D array of finite numbers (s), got shape "
+                             f"{t.shape}")
+        i = np.searchsorted(self._t, t, side="right") - 1
+        before = i < 0
+        i = np.maximum(i, 0)
+        out = self._c[i] + self._v[i] * (t - self._t[i])[:, None]
+        out[before] = self._c[0]
+        return out
+
     def velocity(self, t: float) -> np.ndarray:
         """dc/dt at t, (3,) m/s: the velocity of the segment t lies in (of the segment that
         starts at t, at a breakpoint); zero before the first time."""
