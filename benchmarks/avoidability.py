@@ -22,13 +22,9 @@ from scipy import stats
 
 from paper_repro import Config, make_scene, paths
 from paper_repro.analysis.avoidability import find_passage, passage_row
+from paper_repro.cli.args import seed_list
 from paper_repro.evidence.golden import stamp
 from paper_repro.studies.catalogue import PASSAGE_STEPS
-
-
-def _seeds(text: str) -> list[int]:
-    lo, _, hi = text.partition("-")
-    return list(range(int(lo), int(hi or lo) + 1))
 
 
 def _study_pace() -> dict:
@@ -46,13 +42,17 @@ def _study_pace() -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seeds", default="0-49", help="crossing seeds, a range like 0-49")
+    parser.add_argument("--seeds", default="0-49", help="crossing seeds, e.g. 0-49 or 2,3,5")
     parser.add_argument("--save", action="store_true")
     args = parser.parse_args()
+    try:
+        seeds = seed_list(args.seeds)
+    except argparse.ArgumentTypeError as exc:
+        parser.error(f"--seeds {exc}")
     horizon = PASSAGE_STEPS * Config().nmpc.ts
     pace = _study_pace()
     rows = []
-    for seed in _seeds(args.seeds):
+    for seed in seeds:
         t0 = time.perf_counter()
         scene = make_scene("random-crossing", seed)
         passage = find_passage(scene, horizon)

@@ -20,6 +20,7 @@ import pandas as pd
 from paper_repro import Config, paths
 from paper_repro import studies as S
 from paper_repro.analysis import statistics
+from paper_repro.cli.args import seed_list
 from paper_repro.evidence.golden import stamp
 from paper_repro.studies.catalogue import PASSAGE_STEPS, Study, passage_spec
 
@@ -39,12 +40,10 @@ LEVERS = {
     "reaction-0.5s": _with(barrier={"reaction_time": 0.5}),
     "reaction-1s": _with(barrier={"reaction_time": 1.0}),
     "reaction-2s": _with(barrier={"reaction_time": 2.0}),
-    "h-0.02s": _with(nmpc={"prediction_ts": 0.02}),
     "h-0.03s": _with(nmpc={"prediction_ts": 0.03}),
     "d_min-2": _with(barrier={"d_min": 2.0}),
     "d_min-3": _with(barrier={"d_min": 3.0}),
     "d_min-2+reaction-0.5s": _with(barrier={"d_min": 2.0, "reaction_time": 0.5}),
-    "delta-0.8": _with(barrier={"delta": 0.8}),
 }
 """Lever name → change of the moving study's base configuration."""
 
@@ -104,39 +103,42 @@ def summary(table: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _seeds(text: str) -> list[int]:
-    """``"0-29"``, ``"2,3,5"`` or both (``"0-9,12"``)."""
-    seeds = []
-    for part in text.split(","):
-        lo, _, hi = part.partition("-")
-        seeds += range(int(lo), int(hi or lo) + 1)
-    return sorted(set(seeds))
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seeds", default="0-29", help="crossing seeds, e.g. 0-49")
+    parser.add_argument("--seeds", default="0-29", help="crossing seeds, e.g. 0-49 or 2,3,5")
     parser.add_argument("--levers", nargs="+", default=list(LEVERS), choices=list(LEVERS))
     parser.add_argument("--full-seeds", default=None,
-                        help="a second set of seeds (e.g. all the study's, 0-29) ...")
+                        help="a second set of crossing seeds (e.g. all the study's, 0-29) for "
+                             "the --full-levers; the table's `scenes` column tells the sets")
     parser.add_argument("--full-levers", nargs="+", default=[], choices=list(LEVERS),
-                        help="... flown by these levers (the table's `scenes` tells the two)")
+                        help="the levers flown on --full-seeds and --static-seeds")
     parser.add_argument("--static-seeds", default=None,
                         help="static random passages (the Monte Carlo study's scenes) on which "
                              "the --full-levers fly too, with the paper's static prediction")
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--save", action="store_true")
     args = parser.parse_args()
-    groups = [(args.seeds, name) for name in args.levers]
+    if bool(args.full_levers) != bool(args.full_seeds or args.static_seeds):
+        parser.error("--full-levers and --full-seeds (or --static-seeds) go together")
+    for option in ("seeds", "full_seeds", "static_seeds"):
+        try:
+            if getattr(args, option):
+                seed_list(getattr(args, option))
+        except argparse.ArgumentTypeError as exc:
+            parser.error(f"--{option.replace('_', '-')} {exc}")
+    # Every study is built (and so every configuration checked) before anything flies.
+    groups = [(args.seeds, name, lever_study(name, seed_list(args.seeds)))
+              for name in args.levers]
     if args.full_seeds:
-        groups += [(args.full_seeds, name) for name in args.full_levers]
+        groups += [(args.full_seeds, name, lever_study(name, seed_list(args.full_seeds)))
+                   for name in args.full_levers]
     if args.static_seeds:
-        groups += [(f"static {args.static_seeds}", name) for name in args.full_levers]
+        groups += [(f"static {args.static_seeds}", name,
+                    static_study(name, seed_list(args.static_seeds)))
+                   for name in args.full_levers]
     tables, timings = [], []
-    for scenes, name in groups:
-        study = (static_study(name, _seeds(scenes.split()[1])) if scenes.startswith("static")
-                 else lever_study(name, _seeds(scenes)))
+    for scenes, name, study in groups:
         folder = f"{name}-{scenes}".replace(" ", "-")
         result = S.run_study(study, out=paths.results_dir() / "levers" / folder,
                              workers=args.workers, runs_dir=paths.results_dir() / "runs",

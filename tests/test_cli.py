@@ -53,6 +53,18 @@ def test_run_offers_exactly_the_scenes_make_scene_builds():
     assert tuple(choices) == SCENARIOS
 
 
+def test_seed_lists_read_ranges_and_single_seeds_and_name_what_they_accept():
+    import argparse
+
+    from paper_repro.cli.args import seed_list
+
+    assert seed_list("0-3") == [0, 1, 2, 3]
+    assert seed_list("5,2,3-4,2") == [2, 3, 4, 5]
+    for bad in ("x", "3-1", "-2", "1,,2", "0-"):
+        with pytest.raises(argparse.ArgumentTypeError, match="must be seeds like 0-29"):
+            seed_list(bad)
+
+
 def test_the_help_lists_every_command():
     text = subprocess.run([sys.executable, "-m", "paper_repro", "--help"],
                           capture_output=True, text=True, check=True).stdout

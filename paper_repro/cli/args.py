@@ -28,6 +28,25 @@ positive_int = int_at_least(1)
 non_negative_int = int_at_least(0)
 
 
+def seed_list(text: str) -> list[int]:
+    """An argparse type: scene seeds as ranges and single seeds joined by commas (``0-29``,
+    ``2,3,5``, ``0-9,12``), each an integer >= 0; sorted, each seed once."""
+    seeds = set()
+    for part in text.split(","):
+        lo, dash, hi = part.strip().partition("-")
+        try:
+            first, last = int(lo), int(hi) if dash else int(lo)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"must be seeds like 0-29 or 2,3,5 (integers >= 0), got {text!r}") from None
+        if first < 0 or last < first:
+            raise argparse.ArgumentTypeError(
+                f"must be seeds like 0-29 or 2,3,5 (integers >= 0, ranges increasing), got "
+                f"{text!r}")
+        seeds.update(range(first, last + 1))
+    return sorted(seeds)
+
+
 def output_directory(option: str, text: str) -> Path:
     """Create the directory ``text`` (if new) and check that a file can be written into it,
     so that a run never flies and then fails to save; ``ValueError`` naming ``option``."""
