@@ -407,6 +407,36 @@ class SensorParams:
         return self.range_noise == 0 and self.dropout == 0 and self.spurious_rate == 0
 
 
+MOVED = {
+    ("nmpc", "solver"): ("solver", "nlp_solver"),
+    ("nmpc", "sqp_iterations"): ("solver", "sqp_iterations"),
+    ("nmpc", "line_search"): ("solver", "line_search"),
+    ("nmpc", "qp_solver"): ("solver", "qp_solver"),
+    ("simulation", "lidar_range"): ("sensor", "range"),
+    ("simulation", "prediction"): ("nmpc", "prediction"),
+}
+"""Settings that moved between parts, (old part, old name) → (new part, new name): the
+solver's options left the problem's ``nmpc`` part, and the LiDAR's range and the prediction of
+moving regions left the mission (``simulation``)."""
+
+
+def _moved_settings(data: dict) -> dict:
+    """``data`` (a :meth:`Config.to_dict`) with every setting of :data:`MOVED` in its new
+    place; a setting given in both places is refused."""
+    data = {part: dict(values) if isinstance(values, dict) else values
+            for part, values in data.items()}
+    for (old_part, old_name), (new_part, new_name) in MOVED.items():
+        old = data.get(old_part)
+        if not (isinstance(old, dict) and old_name in old):
+            continue
+        new = data.setdefault(new_part, {})
+        if new_name in new:
+            raise ValueError(f"config gives {old_part}.{old_name} (its former place) and "
+                             f"{new_part}.{new_name}: give only {new_part}.{new_name}")
+        new[new_name] = old.pop(old_name)
+    return data
+
+
 @dataclass(frozen=True)
 class Config:
     """Everything that defines one run; saved as ``config.json`` beside each result.
@@ -483,34 +513,3 @@ class Config:
             parts[f.name] = sub_cls(**sub)
         return cls(**parts)
 
-
-
-
-MOVED = {
-    ("nmpc", "solver"): ("solver", "nlp_solver"),
-    ("nmpc", "sqp_iterations"): ("solver", "sqp_iterations"),
-    ("nmpc", "line_search"): ("solver", "line_search"),
-    ("nmpc", "qp_solver"): ("solver", "qp_solver"),
-    ("simulation", "lidar_range"): ("sensor", "range"),
-    ("simulation", "prediction"): ("nmpc", "prediction"),
-}
-"""Settings that moved between parts, (old part, old name) → (new part, new name): the
-solver's options left the problem's ``nmpc`` part, and the LiDAR's range and the prediction of
-moving regions left the mission (``simulation``)."""
-
-
-def _moved_settings(data: dict) -> dict:
-    """``data`` (a :meth:`Config.to_dict`) with every setting of :data:`MOVED` in its new
-    place; a setting given in both places is refused."""
-    data = {part: dict(values) if isinstance(values, dict) else values
-            for part, values in data.items()}
-    for (old_part, old_name), (new_part, new_name) in MOVED.items():
-        old = data.get(old_part)
-        if not (isinstance(old, dict) and old_name in old):
-            continue
-        new = data.setdefault(new_part, {})
-        if new_name in new:
-            raise ValueError(f"config gives {old_part}.{old_name} (its former place) and "
-                             f"{new_part}.{new_name}: give only {new_part}.{new_name}")
-        new[new_name] = old.pop(old_name)
-    return data

@@ -107,6 +107,7 @@ __all__ = [
     "PASSAGE_STEPS",
     "QUICK_STEPS",
     "ReproduceReport",
+    "rekey",
     "run_key",
     "run_specs",
     "run_study",
