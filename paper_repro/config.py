@@ -124,6 +124,20 @@ class BarrierParams:
         off, in proportion to its speed, where the 0.35 s prediction alone sees it too late.
         A region at rest, and every region under the paper's static prediction, keeps
         β = D − d_min.
+    sweep_time : t_s, s, *chosen* 0 (off: the paper). A region predicted to move at v is
+        replaced, at every τ of the horizon, by the path it sweeps over the next t_s seconds:
+        the union of its cloud moved by v·(τ + s) for s ∈ {0, t_s/4, …, t_s}
+        (:data:`~paper_repro.problem.scan.SWEEP_SAMPLES` copies; the copies ahead ramp in
+        with the speed, as ``moving_d_min`` does). The safe set then excludes where the
+        region is going, in its direction of motion only, so the escape starts while the
+        region is still t_s seconds away, and a region passing sideways costs no margin
+        beside it. The swept D is never above the region's own, and equals it at rest.
+    moving_d_min : m², *chosen* 0 (off: the paper). The margin of a region predicted to move:
+        d_min rises smoothly to ``moving_d_min`` as the region's predicted speed goes from
+        0.1 to 0.3 m/s (:data:`~paper_repro.problem.scan.MOVING_SPEEDS`; a smoothstep, so
+        that a Kalman estimate jittering about a region at rest does not switch it). 0 keeps
+        d_min for every region; 3 m² keeps a moving region √6 = 2.45 m away, within the 3 m
+        the LiDAR sees.
     """
 
     delta: float = 0.95
@@ -133,6 +147,8 @@ class BarrierParams:
     mu: float = 5e4
     form: str = "printed"
     reaction_time: float = 0.0
+    sweep_time: float = 0.0
+    moving_d_min: float = 0.0
 
     def __post_init__(self):
         if not (is_number(self.delta) and 0.0 < self.delta < 1.0):
@@ -151,6 +167,14 @@ class BarrierParams:
                 and self.reaction_time >= 0):
             raise ValueError(f"reaction_time must be a finite number >= 0 (s; 0 is off), got "
                              f"{self.reaction_time!r}")
+        if not (is_number(self.sweep_time) and math.isfinite(self.sweep_time)
+                and 0 <= self.sweep_time <= 5):
+            raise ValueError(f"sweep_time must be a number in [0, 5] (s; 0 is off), got "
+                             f"{self.sweep_time!r}")
+        if not (is_number(self.moving_d_min) and math.isfinite(self.moving_d_min)
+                and (self.moving_d_min == 0 or self.moving_d_min >= self.d_min)):
+            raise ValueError(f"moving_d_min must be 0 (off) or a finite number >= d_min = "
+                             f"{self.d_min} (m²), got {self.moving_d_min!r}")
 
     @property
     def decay(self) -> float:
@@ -467,11 +491,12 @@ class Config:
             raise ValueError(f"distance.window must be < sensor.range = "
                              f"{self.sensor.range} m (a window as wide as the range "
                              f"sees nothing at full weight), got {self.distance.window!r}")
-        if self.barrier.reaction_time > 0 and self.nmpc.prediction == "static":
-            raise ValueError("barrier.reaction_time needs nmpc.prediction 'oracle' or 'kalman': "
-                             "the static prediction (the paper's) hands the problem no region "
-                             f"velocity to grow the margin with, got reaction_time "
-                             f"{self.barrier.reaction_time!r}")
+        for name in ("reaction_time", "sweep_time", "moving_d_min"):
+            value = getattr(self.barrier, name)
+            if value > 0 and self.nmpc.prediction == "static":
+                raise ValueError(f"barrier.{name} needs nmpc.prediction 'oracle' or 'kalman': "
+                                 "the static prediction (the paper's) hands the problem no "
+                                 f"region velocity to act on, got {name} {value!r}")
         # Cross-field: the artificial equilibrium (hover at rest, eq. 7) must exist in
         # λ(𝒳 × 𝒰), or the OCP is infeasible at every step.
         xl, xu, ul, uu = self.nmpc.relaxed_bounds()

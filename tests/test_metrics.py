@@ -1,12 +1,16 @@
 """Chattering and summary metrics: properties a reader can check by hand."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from paper_repro import Config, make_scene
 from paper_repro.analysis.metrics import (
+    cbf_condition_share,
     chattering_metrics,
     input_spectrum,
+    region_distances,
     scan_change_steps,
     sign_changes,
     summary_row,
@@ -14,6 +18,8 @@ from paper_repro.analysis.metrics import (
     tracking_error,
 )
 from paper_repro.sim.result import SimulationResult
+from paper_repro.world.motion import Motion
+from paper_repro.world.scene import Region, Scene
 
 TS = 0.01
 T = np.arange(0.0, 20.0, TS)
@@ -218,3 +224,49 @@ def test_scan_change_steps_pick_the_steps_that_see_a_new_set_and_their_neighbour
     row = summary_row(r)
     assert row["scan_changes"] == 2 and row["scan_change_jump_share"] == 1.0
     assert row["du_scan_change_median_N"] == pytest.approx(0.125)
+
+
+def _dot_run(path, motion=None):
+    """A run whose output follows ``path`` (K + 1, 3) m past one cloud point at the origin (moved
+    by ``motion``): what :func:`cbf_condition_share` reads of a result."""
+    scene = Scene("dot", (Region("dot", None),), tuple(path[0]), (tuple(path[-1]),),
+                  clouds=(np.zeros((1, 3)),), motions=None if motion is None else (motion,))
+    x = np.zeros((len(path), 12))
+    x[:, :3] = path
+    return SimpleNamespace(scene=scene, x=x, t=np.arange(len(path) - 1) * TS, config=Config())
+
+
+def test_region_distances_are_the_true_distances_to_each_region_where_it_is():
+    path = np.column_stack([np.linspace(4.0, 0.5, 351), np.zeros(351), np.full(351, 1.0)])
+    d = region_distances(_dot_run(path))
+    np.testing.assert_allclose(d[:, 0], np.hypot(path[:-1, 0], 1.0), rtol=1e-12)
+    # The point moving at the UAV's own velocity stays where it was relative to it.
+    motion = Motion.constant((-1.0, 0.0, 0.0))
+    d = region_distances(_dot_run(path, motion))
+    np.testing.assert_allclose(d[:, 0], np.hypot(4.0, 1.0), rtol=1e-12)
+
+
+@pytest.mark.parametrize("gap, share", [(2.0, 0.0), (1.0, 1.0), (3.5, np.nan)])
+def test_a_constant_distance_keeps_the_cbf_condition_only_outside_the_margin(gap, share):
+    """β(y_{k+1}) = β(y_k) ≥ δ·β(y_k) holds exactly where β ≥ 0 (d ≥ √(2·d_min) = 1.41 m)
+    and fails at every step inside it; out of the 3 m range nothing is in view (NaN)."""
+    t = np.arange(201) * TS
+    path = np.column_stack([t, np.full_like(t, gap), np.zeros_like(t)])
+    run = _dot_run(path, Motion.constant((1.0, 0.0, 0.0)))
+    np.testing.assert_equal(cbf_condition_share(run), share)
+
+
+def test_a_straight_approach_breaks_the_cbf_condition_below_its_analytic_distance():
+    """Head-on at h = 1 cm per step: ½(d − h)² − d_min < δ(½d² − d_min) ⇔
+    (1 − δ)d² − 2hd + h² − 2(1 − δ)d_min < 0, so (15) fails exactly below the root d*
+    ≈ 1.63 m, and the share is that of the in-view steps nearer than d*."""
+    h, delta, d_min = 0.01, Config().barrier.delta, Config().barrier.d_min
+    d = np.arange(350, 60, -1) * h + h / 2  # no sample on the range or the root
+    path = np.column_stack([d, np.zeros_like(d), np.zeros_like(d)])
+    a, b, c = 1 - delta, -2 * h, h**2 - 2 * (1 - delta) * d_min
+    root = (-b + np.sqrt(b * b - 4 * a * c)) / (2 * a)
+    recorded = d[:-1]  # the state after the last step is not a recorded step
+    in_view = recorded[:-1] <= 3.0
+    expected = np.sum(in_view & (recorded[:-1] < root)) / np.sum(in_view)
+    assert 1.6 < root < 1.65
+    assert cbf_condition_share(_dot_run(path)) == pytest.approx(expected, abs=1e-12)

@@ -22,6 +22,7 @@ chattering.
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 TIMING_COLUMNS = ("solve_mean_ms", "solve_median_ms", "solve_p95_ms", "solve_p99_ms",
                   "solve_max_ms", "wall_time_s", "steps_per_s")
@@ -137,6 +138,41 @@ COLLISION_CLEARANCE = 0.35
 (h = 0.332 m, Table I): a rotor would touch a cloud point."""
 
 
+def region_distances(result) -> np.ndarray:
+    """(K, n_regions) m: the true Euclidean distance from the output y_k (the position, the
+    first p states of either vehicle) to each region where it is at t_k, over all its points
+    (not only those the LiDAR sees); ``inf`` for a region without points. The minimum over
+    regions is ``result.clearance``."""
+    scene = result.scene
+    y = np.asarray(result.x, float)[:-1, :scene.dim]
+    t = np.asarray(result.t, float)
+    out = np.full((len(y), len(scene.clouds)), np.inf)
+    for i, cloud in enumerate(scene.clouds):
+        if len(cloud):
+            moved = y if scene.motions is None else y - scene.motions[i].offsets_at(t)
+            out[:, i] = cKDTree(cloud).query(moved)[0]
+    return out
+
+
+def cbf_condition_share(result) -> float:
+    """Share of the closed-loop steps k with a region in view (true distance ≤ the sensor's
+    range) at which the discrete CBF condition (15), β(y_{k+1}) ≥ δ·β(y_k), fails for one of
+    them, with β = ½d² − d_min on the true Euclidean distance d to the region where it is (the
+    set that the barrier of either metric guards) and the run's δ and d_min. The paper's
+    controller enforces (15) softly over its prediction; this counts what the closed loop did.
+    NaN when no region came into view."""
+    cfg = result.config
+    d = region_distances(result)
+    if len(d) < 2:
+        return float("nan")
+    beta = 0.5 * d**2 - cfg.barrier.d_min
+    in_view = d[:-1] <= cfg.sensor.range
+    with np.errstate(invalid="ignore"):  # inf − inf of a region without points: never in view
+        failed = in_view & (beta[1:] < cfg.barrier.delta * beta[:-1])
+    steps = in_view.any(axis=1)
+    return float(failed.any(axis=1).sum() / steps.sum()) if steps.any() else float("nan")
+
+
 SCAN_STEP_THRESHOLD = 0.01
 """A thrust step above this (N) at a change of the visible set counts as a jump (10 mN, ten
 times the sign-change dead band)."""
@@ -204,6 +240,8 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
       the non-position entries); NaN for a vehicle with another state.
     * the set-up's hazards (``meta["hazards"]``, :func:`paper_repro.sim.checks.setup_hazards`):
       ``start_unsafe``, ``target_unsafe``, ``target_unreachable``.
+    * ``cbf_condition_violated_share``: the share of steps with a region in view at which the
+      closed loop broke the discrete CBF condition (15) (:func:`cbf_condition_share`).
     * thrust steps at changes of the visible set (:func:`scan_change_steps`): ``scan_changes``,
       the median |Δu| there and within :data:`SCAN_NEIGHBOURHOOD` steps around them, and the
       share of changes with a step above :data:`SCAN_STEP_THRESHOLD`.
@@ -263,6 +301,7 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
         "hf_rms_N": chat["hf_rms"],
         "du_sign_changes": chat["du_sign_changes"],
         "cutoff_hz": chat["cutoff_hz"],
+        "cbf_condition_violated_share": cbf_condition_share(result),
         "scan_changes": int(len(at_changes)),
         "du_scan_change_median_N": _median(at_changes),
         "du_around_changes_median_N": _median(around),

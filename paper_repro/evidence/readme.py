@@ -241,11 +241,14 @@ def moving_obstacles() -> str:
                 f"{s.min_clearance_min_m:.3f} / {e.min_clearance_min_m:.3f} m",
                 f"{s.tv_u_rate_median_N_per_s:.3g} / {e.tv_u_rate_median_N_per_s:.3g} N/s",
                 f"{_share(s.completed)} / {_share(e.completed)}",
-                f"{int(s.failed_solves):,} / {int(e.failed_solves):,}"]
+                f"{int(s.failed_solves):,} / {int(e.failed_solves):,}",
+                f"{_share(s.cbf_condition_violated_share_median)} / "
+                f"{_share(e.cbf_condition_violated_share_median)}"]
         rows.append(row)
     return markdown_table(["prediction", "collisions, smoothed", "collisions, Euclidean",
                       "min clearance, median (smoothed / Euclidean)", "closest approach",
-                      "TV of u, median", "completed", "failed solves"], rows)
+                      "TV of u, median", "completed", "failed solves",
+                      "steps breaking (15) with a region in view, median"], rows)
 
 
 def avoidability() -> str:
@@ -281,11 +284,13 @@ def moving_levers() -> str:
              f"{r.collisions}/{r.runs} [{100 * r.collision_low:.0f}, "
              f"{100 * r.collision_high:.0f}] %", f"{r.min_clearance_m:.3f} m",
              f"{r.stalled}/{r.runs}", f"{r.tv_u_rate_median_N_per_s:.3g} N/s",
-             f"{r.failed_solves:,}", f"{r.time_to_complete_median_s:.0f} s"]
+             f"{r.failed_solves:,}", _share(r.cbf_condition_violated_share_median),
+             f"{r.time_to_complete_median_s:.0f} s"]
             for r in table.itertuples()]
     return markdown_table(["crossings", "lever", "prediction", "metric", "a region in range",
                            "collisions", "closest approach", "stalled", "TV of u, median",
-                           "failed solves", "time, median"], rows)
+                           "failed solves", "steps breaking (15), median",
+                           "time, median"], rows)
 
 
 def timeline() -> str:

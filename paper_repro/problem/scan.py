@@ -17,6 +17,13 @@ from paper_repro.validation import as_vector
 PAD_LOG_WEIGHT = -1e30
 """log w of a padding point of a slot: exp(log w) = 0, so padding never weighs in."""
 
+SWEEP_SAMPLES = 5
+"""Copies of a moving region along its swept path (``BarrierParams.sweep_time``): at 1.5 m/s
+and t_s = 1 s they stand 0.375 m apart, about the clouds' spacing."""
+
+MOVING_SPEEDS = (0.1, 0.3)
+"""Predicted speeds, m/s, between which ``BarrierParams.moving_d_min`` ramps in."""
+
 _FAR_AWAY = 1e3  # coordinate of the single dummy point of an inactive slot (its F is exactly 0)
 
 
@@ -49,6 +56,10 @@ class ScanLayout:
         with its speed: β = D − ½(√(2·d_min) + ‖v‖·t_r)², the safe distance √(2·d_min)
         lengthened by the way the region covers in t_r (see
         :class:`~paper_repro.config.BarrierParams`). A region at rest keeps β = D − d_min.
+    sweep_time : t_s, s (0: off), with ``moving`` only: D of the region's path over the next
+        t_s seconds (:data:`SWEEP_SAMPLES` copies).
+    moving_d_min : m² (0: off), with ``moving`` only: the margin of a region predicted to
+        move, ramped in between the speeds of :data:`MOVING_SPEEDS`.
     """
 
     metric: str
@@ -62,6 +73,8 @@ class ScanLayout:
     sensor_range: float = 3.0
     moving: bool = False
     reaction_time: float = 0.0
+    sweep_time: float = 0.0
+    moving_d_min: float = 0.0
 
     @property
     def size(self) -> int:
@@ -185,13 +198,39 @@ class ScanLayout:
             return params, lambda yy, tau=0.0: beta_fn(yy, pts, *extra), active
         velocity = ca.SX.sym("velocity", dim)
         params = ca.vertcat(ca.vec(pts), *extra, active, velocity)
-        if self.reaction_time == 0:
-            return params, lambda yy, tau=0.0: beta_fn(yy - velocity * tau, pts, *extra), active
         # ‖v‖ of a parameter: never differentiated, so its kink at v = 0 does not matter.
-        reach = ca.sqrt(2.0 * self.d_min) + ca.norm_2(velocity) * self.reaction_time
-        widened = 0.5 * reach**2 - self.d_min
-        return (params,
-                lambda yy, tau=0.0: beta_fn(yy - velocity * tau, pts, *extra) - widened, active)
+        speed = ca.norm_2(velocity)
+        lo, hi = MOVING_SPEEDS
+        ramp = ca.fmin(ca.fmax((speed - lo) / (hi - lo), 0), 1)
+        moving = ramp**2 * (3 - 2 * ramp)  # 0 at rest, 1 when moving: a smoothstep
+        margin = self.d_min
+        if self.moving_d_min > 0:
+            margin = margin + (self.moving_d_min - self.d_min) * moving
+        if self.reaction_time > 0:
+            margin = 0.5 * (ca.sqrt(2.0 * margin) + speed * self.reaction_time) ** 2
+        extra_margin = margin - self.d_min  # beta_fn already subtracts d_min
+        if self.sweep_time == 0 and self.moving_d_min == 0 and self.reaction_time == 0:
+            return params, lambda yy, tau=0.0: beta_fn(yy - velocity * tau, pts, *extra), active
+        if self.sweep_time == 0:
+            return (params, lambda yy, tau=0.0: beta_fn(yy - velocity * tau, pts, *extra)
+                    - extra_margin, active)
+        leads = np.linspace(0.0, self.sweep_time, SWEEP_SAMPLES)
+
+        def beta(yy, tau=0.0):
+            copies = [beta_fn(yy - velocity * (tau + s), pts, *extra) for s in leads]
+            if self.metric == "euclidean":
+                # the exact distance to the union of the copies (they coincide at rest)
+                return ca.mmin(ca.vertcat(*copies)) - extra_margin
+            # D of the union of the region now and its copies ahead, these weighted by
+            # `moving`: −η ln(e^{−D_0/η} + moving·Σ_{k≥1} e^{−D_k/η}), never above D_0 (never
+            # less safe than the region now) and D_0 itself at rest. Shifted by the least
+            # D_k so that no exponential overflows.
+            low = ca.mmin(ca.vertcat(*copies))
+            ahead = sum(ca.exp(-(c - low) / self.eta) for c in copies[1:])
+            swept = low - self.eta * ca.log(ca.exp(-(copies[0] - low) / self.eta)
+                                            + moving * ahead)
+            return swept - extra_margin
+        return params, beta, active
 
     def barriers(self):
         """Every slot at once: ``(params, beta, active)`` with ``params`` the scan's parameter

@@ -196,14 +196,14 @@ def moving_obstacles(quick: bool = False, scenes: int | None = None,
                      base: Config | None = None) -> Study:
     """Random crossings (``"random-crossing"``: every region moves across the line at
     0.5–1.5 m/s) × the predictions of :data:`PREDICTIONS` × {smoothed, Euclidean}, on
-    ``scenes`` passages (30; 2 with ``quick``). Does the static assumption collide where
+    ``scenes`` passages (50; 2 with ``quick``). Does the static assumption collide where
     prediction does not?
 
     Flown with the damped real-time iteration (``solver.line_search = True``): where a region
     moves at the vehicle the full Gauss-Newton steps fall into a period-2 oscillation of the
     thrusts between their bounds that the converged controller (IPOPT) does not show, and the
     damped iteration stays within millimetres of IPOPT there (``benchmarks/fidelity.py``)."""
-    n, base, steps = _passages(quick, scenes, 30, base)
+    n, base, steps = _passages(quick, scenes, 50, base)
     base = dataclasses.replace(base, solver=dataclasses.replace(base.solver, line_search=True))
     specs = []
     for prediction in PREDICTIONS:
