@@ -145,8 +145,8 @@ def main() -> None:
         groups += [(args.full_seeds, name, lever_study(name, seed_list(args.full_seeds)))
                    for name in args.full_levers]
     if args.static_seeds:
+        predicted = Config(nmpc=dataclasses.replace(Config().nmpc, prediction="oracle"))
         for name in args.full_levers:
-            predicted = Config(nmpc=dataclasses.replace(Config().nmpc, prediction="oracle"))
             if any(getattr(LEVERS[name](predicted).barrier, f) for f in MOVING_ONLY):
                 print(f"{name}: acts on regions predicted to move only (refused under the "
                       "static prediction, the plain barrier at rest): no static rows")

@@ -127,8 +127,9 @@ class BarrierParams:
     sweep_time : t_s, s, *chosen* 0 (off: the paper). A region predicted to move at v is
         replaced, at every τ of the horizon, by the path it sweeps over the next t_s seconds:
         the union of its cloud moved by v·(τ + s) for s ∈ {0, t_s/4, …, t_s}
-        (:data:`~paper_repro.problem.scan.SWEEP_SAMPLES` copies; the copies ahead ramp in
-        with the speed, as ``moving_d_min`` does). The safe set then excludes where the
+        (:data:`~paper_repro.problem.scan.SWEEP_SAMPLES` copies; the Euclidean metric takes
+        their exact minimum, the smoothed one their soft minimum with the copies ahead
+        ramping in with the speed, as ``moving_d_min`` does). The safe set then excludes where the
         region is going, in its direction of motion only, so the escape starts while the
         region is still t_s seconds away, and a region passing sideways costs no margin
         beside it. The swept D is never above the region's own, and equals it at rest.

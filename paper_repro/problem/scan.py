@@ -198,19 +198,19 @@ class ScanLayout:
             return params, lambda yy, tau=0.0: beta_fn(yy, pts, *extra), active
         velocity = ca.SX.sym("velocity", dim)
         params = ca.vertcat(ca.vec(pts), *extra, active, velocity)
+        if self.sweep_time == 0 and self.moving_d_min == 0 and self.reaction_time == 0:
+            return params, lambda yy, tau=0.0: beta_fn(yy - velocity * tau, pts, *extra), active
         # ‖v‖ of a parameter: never differentiated, so its kink at v = 0 does not matter.
         speed = ca.norm_2(velocity)
         lo, hi = MOVING_SPEEDS
         ramp = ca.fmin(ca.fmax((speed - lo) / (hi - lo), 0), 1)
-        moving = ramp**2 * (3 - 2 * ramp)  # 0 at rest, 1 when moving: a smoothstep
+        in_motion = ramp**2 * (3 - 2 * ramp)  # 0 at rest, 1 when moving: a smoothstep
         margin = self.d_min
         if self.moving_d_min > 0:
-            margin = margin + (self.moving_d_min - self.d_min) * moving
+            margin = margin + (self.moving_d_min - self.d_min) * in_motion
         if self.reaction_time > 0:
             margin = 0.5 * (ca.sqrt(2.0 * margin) + speed * self.reaction_time) ** 2
         extra_margin = margin - self.d_min  # beta_fn already subtracts d_min
-        if self.sweep_time == 0 and self.moving_d_min == 0 and self.reaction_time == 0:
-            return params, lambda yy, tau=0.0: beta_fn(yy - velocity * tau, pts, *extra), active
         if self.sweep_time == 0:
             return (params, lambda yy, tau=0.0: beta_fn(yy - velocity * tau, pts, *extra)
                     - extra_margin, active)
@@ -222,13 +222,13 @@ class ScanLayout:
                 # the exact distance to the union of the copies (they coincide at rest)
                 return ca.mmin(ca.vertcat(*copies)) - extra_margin
             # D of the union of the region now and its copies ahead, these weighted by
-            # `moving`: −η ln(e^{−D_0/η} + moving·Σ_{k≥1} e^{−D_k/η}), never above D_0 (never
+            # `in_motion`: −η ln(e^{−D_0/η} + moving·Σ_{k≥1} e^{−D_k/η}), never above D_0 (never
             # less safe than the region now) and D_0 itself at rest. Shifted by the least
             # D_k so that no exponential overflows.
             low = ca.mmin(ca.vertcat(*copies))
             ahead = sum(ca.exp(-(c - low) / self.eta) for c in copies[1:])
             swept = low - self.eta * ca.log(ca.exp(-(copies[0] - low) / self.eta)
-                                            + moving * ahead)
+                                            + in_motion * ahead)
             return swept - extra_margin
         return params, beta, active
 
