@@ -22,11 +22,11 @@ from paper_repro import studies as S
 from paper_repro.analysis import statistics
 from paper_repro.cli.args import seed_list
 from paper_repro.evidence.golden import stamp
-from paper_repro.studies.catalogue import PASSAGE_STEPS, Study, passage_spec
+from paper_repro.studies.catalogue import MOVING_DESIGN, PASSAGE_STEPS, Study, passage_spec
 
 PREDICTED = ("oracle", "kalman")
 
-MOVING_ONLY = {"reaction_time", "sweep_time", "moving_d_min"}
+MOVING_ONLY = {"reaction_time", "sweep_time", "moving_d_min", "equilibrium_lookahead"}
 """Barrier levers that act on a region's predicted velocity: refused with the static
 prediction, and the paper's barrier for a region at rest (tests/test_moving_prediction.py)."""
 
@@ -53,6 +53,11 @@ LEVERS = {
     "moving-d_min-3": _with(barrier={"moving_d_min": 3.0}),
     "moving-d_min-3+sweep-0.5s": _with(barrier={"moving_d_min": 3.0, "sweep_time": 0.5}),
     "moving-d_min-3+sweep-1s": _with(barrier={"moving_d_min": 3.0, "sweep_time": 1.0}),
+    "lookahead-3s": _with(barrier={"equilibrium_lookahead": 3.0}),
+    "lookahead-5s": _with(barrier={"equilibrium_lookahead": 5.0}),
+    "moving-d_min-3+lookahead-4s": _with(barrier={"moving_d_min": 3.0,
+                                                  "equilibrium_lookahead": 4.0}),
+    "moving-d_min-2+lookahead-3s": _with(barrier=MOVING_DESIGN["euclidean"]),  # Euclidean design
 }
 """Lever name → change of the moving study's base configuration."""
 

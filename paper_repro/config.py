@@ -139,6 +139,13 @@ class BarrierParams:
         that a Kalman estimate jittering about a region at rest does not switch it). 0 keeps
         d_min for every region; 3 m² keeps a moving region √6 = 2.45 m away, within the 3 m
         the LiDAR sees.
+    equilibrium_lookahead : t_a, s, *chosen* 0 (off: the paper). β at the artificial
+        equilibrium y_a (the point y_{N+1} the prediction rests at, in g_N and g_a of eq. 18)
+        is taken against the path a region predicted to move sweeps over the t_a seconds
+        after the horizon, as ``sweep_time`` does for every stage. The horizon is 0.35 s, but
+        the equilibrium is where the vehicle would stay: this asks it to be clear of where
+        the region is going, so the prediction leaves the region's path seconds before the
+        region arrives. In [0, 10].
     """
 
     delta: float = 0.95
@@ -150,6 +157,7 @@ class BarrierParams:
     reaction_time: float = 0.0
     sweep_time: float = 0.0
     moving_d_min: float = 0.0
+    equilibrium_lookahead: float = 0.0
 
     def __post_init__(self):
         if not (is_number(self.delta) and 0.0 < self.delta < 1.0):
@@ -176,6 +184,11 @@ class BarrierParams:
                 and (self.moving_d_min == 0 or self.moving_d_min >= self.d_min)):
             raise ValueError(f"moving_d_min must be 0 (off) or a finite number >= d_min = "
                              f"{self.d_min} (m²), got {self.moving_d_min!r}")
+        if not (is_number(self.equilibrium_lookahead)
+                and math.isfinite(self.equilibrium_lookahead)
+                and 0 <= self.equilibrium_lookahead <= 10):
+            raise ValueError(f"equilibrium_lookahead must be a number in [0, 10] (s; 0 is "
+                             f"off), got {self.equilibrium_lookahead!r}")
 
     @property
     def decay(self) -> float:
@@ -445,6 +458,16 @@ solver's options left the problem's ``nmpc`` part, and the LiDAR's range and the
 moving regions left the mission (``simulation``)."""
 
 
+ADDED = {
+    ("barrier", "equilibrium_lookahead"): 0.0,
+}
+"""Settings added after the committed evidence was flown, (part, name) → the value that flies
+as before (the golden flights prove it). A run whose setting has that value is keyed as it was
+before the setting existed (:meth:`Config.key_dict`), so the committed tables and a cache of
+runs stay valid across the addition and nothing is flown again; any other value enters the key
+like every setting. A setting enters here only with the commit that adds it."""
+
+
 def _moved_settings(data: dict) -> dict:
     """``data`` (a :meth:`Config.to_dict`) with every setting of :data:`MOVED` in its new
     place; a setting given in both places is refused."""
@@ -492,7 +515,7 @@ class Config:
             raise ValueError(f"distance.window must be < sensor.range = "
                              f"{self.sensor.range} m (a window as wide as the range "
                              f"sees nothing at full weight), got {self.distance.window!r}")
-        for name in ("reaction_time", "sweep_time", "moving_d_min"):
+        for name in ("reaction_time", "sweep_time", "moving_d_min", "equilibrium_lookahead"):
             value = getattr(self.barrier, name)
             if value > 0 and self.nmpc.prediction == "static":
                 raise ValueError(f"barrier.{name} needs nmpc.prediction 'oracle' or 'kalman': "
@@ -515,6 +538,15 @@ class Config:
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
+
+    def key_dict(self) -> dict:
+        """What a run's cache key hashes: :meth:`to_dict` without the settings of
+        :data:`ADDED` that hold the value they were added with."""
+        data = self.to_dict()
+        for (part, name), neutral in ADDED.items():
+            if data[part][name] == neutral:
+                del data[part][name]
+        return data
 
     @classmethod
     def from_dict(cls, data: dict) -> Config:

@@ -134,6 +134,73 @@ def test_the_moving_margin_ramps_in_with_the_speed(metric):
     assert shifts[4] == pytest.approx(1.0, rel=1e-9)  # the smoothstep's midpoint
 
 
+def _equilibrium_beta_function(layout):
+    params, beta, _ = layout.region_barrier()
+    y, tau = ca.SX.sym("y", 3), ca.SX.sym("tau")
+    return ca.Function("beta_a", [y, params, tau], [beta(y, tau, at_equilibrium=True)])
+
+
+@pytest.mark.parametrize("metric", ["smooth", "euclidean"])
+def test_the_equilibrium_looks_ahead_along_the_regions_path_and_the_stages_do_not(metric):
+    """``equilibrium_lookahead``: β at y_a is that of the path the region sweeps over t_a after
+    the horizon; β at the stages is the plain one. At rest both are the plain β bit for bit;
+    moving, β at y_a is never above it, and is the exact minimum over the copies (Euclidean)."""
+    rng = np.random.default_rng(13)
+    cloud = rng.uniform(-0.5, 0.5, size=(12, 3)) + [4.0, 0.0, 0.0]
+    plain = ScanLayout(metric, 0.3, 0.8, 1.0, slots=1, capacity=16, moving=True)
+    ahead = dataclasses.replace(plain, equilibrium_lookahead=2.0)
+    f_plain, f_stage, f_eq = (_beta_function(plain), _beta_function(ahead),
+                              _equilibrium_beta_function(ahead))
+    v = np.array([-1.0, 0.0, 0.0])  # towards the origin
+    rest = plain.pack([cloud], np.zeros(3), [np.zeros(3)])
+    coming = plain.pack([cloud], np.zeros(3), [v])
+    for q in rng.normal(scale=1.5, size=(20, 3)):
+        for tau in (0.0, 0.36):
+            assert float(f_stage(q, coming, tau)) == float(f_plain(q, coming, tau))
+            assert float(f_eq(q, rest, tau)) == float(f_plain(q, rest, tau))
+            assert float(f_eq(q, coming, tau)) <= float(f_plain(q, coming, tau)) + 1e-12
+            if metric == "euclidean":
+                copies = [float(f_plain(q, coming, tau + s))
+                          for s in np.linspace(0.0, 2.0, SWEEP_SAMPLES)]
+                assert float(f_eq(q, coming, tau)) == pytest.approx(min(copies), abs=1e-12)
+    # At the origin, 2 s ahead the region stands 2 m closer: β at y_a drops by metres².
+    origin = np.zeros(3)
+    assert float(f_eq(origin, coming, 0.0)) < float(f_plain(origin, coming, 0.0)) - 2.0
+
+
+def test_the_equilibrium_lookahead_is_checked_needs_a_prediction_and_keeps_every_key():
+    """Bad values are named; the static prediction refuses it; at its neutral value 0 a run's
+    cache key is the one it had before the setting existed (config.ADDED), any other value
+    changes it, and a stored configuration reads back whole."""
+    from paper_repro.config import ADDED
+    from paper_repro.studies.runs import _hash, run_key
+
+    for bad in (-0.5, 11.0, float("nan")):
+        with pytest.raises(ValueError, match=r"^equilibrium_lookahead must be a number in "
+                                             r"\[0, 10\]"):
+            BarrierParams(equilibrium_lookahead=bad)
+    with pytest.raises(ValueError, match=r"^barrier.equilibrium_lookahead needs "
+                                         r"nmpc.prediction"):
+        Config(barrier=BarrierParams(equilibrium_lookahead=2.0))
+    on = Config(barrier=BarrierParams(equilibrium_lookahead=2.0),
+                nmpc=NMPCParams(prediction="oracle"))
+    assert OCP(on).scan.equilibrium_lookahead == 2.0
+    assert ("barrier", "equilibrium_lookahead") in ADDED
+    for cfg in (Config(), dataclasses.replace(on, barrier=BarrierParams())):
+        before = cfg.to_dict()
+        del before["barrier"]["equilibrium_lookahead"]  # the layout before the setting
+        assert cfg.key_dict() == before and Config.from_dict(before) == cfg
+        assert run_key(cfg, 100, "scene") == run_key(Config.from_dict(before), 100, "scene")
+        from paper_repro.evidence.golden import golden_hash
+        assert run_key(cfg, 100, "scene") == _hash({"config": before, "max_steps": 100,
+                                                    "scene": "scene",
+                                                    "golden": golden_hash()})
+    assert on.key_dict()["barrier"]["equilibrium_lookahead"] == 2.0
+    assert Config.from_dict(on.key_dict()) == on
+    off = dataclasses.replace(on, barrier=BarrierParams())
+    assert run_key(on, 100, "scene") != run_key(off, 100, "scene")
+
+
 def test_the_moving_levers_are_checked_and_need_a_prediction():
     with pytest.raises(ValueError, match=r"^sweep_time must be a number in \[0, 5\]"):
         BarrierParams(sweep_time=-1.0)
@@ -204,6 +271,42 @@ def test_converged_sqp_equals_ipopt_with_a_moving_region(instant):
     assert a.x[-1, 0] < static.x[-1, 0]
 
 
+def test_converged_sqp_equals_ipopt_with_the_equilibrium_looking_ahead(instant):
+    """``equilibrium_lookahead`` is one problem for both solvers: with the region coming at
+    2 m/s, the SQP iterated to its end and IPOPT agree, and the plan's rest point keeps
+    further from where the region goes over the next second than without the look-ahead."""
+    x0, target, visible = instant
+    towards = [np.array([-2.0, 0.0, 0.0]) if len(v) else np.zeros(3) for v in visible]
+
+    def ahead(solver):
+        cfg = _config(solver=solver)
+        return dataclasses.replace(cfg, barrier=dataclasses.replace(
+            cfg.barrier, equilibrium_lookahead=1.0), solver=dataclasses.replace(
+            cfg.solver, line_search=True))  # as the moving study flies it
+
+    # The SQP's last steps shrink slowly here (Gauss-Newton on the soft minimum over the
+    # copies); after 300 damped iterations it sits on IPOPT's solution.
+    a = RealTimeNMPC(ahead("rti"), max_iter=300, step_tol=1e-10).solve(
+        x0, target, visible, velocities=towards)
+    b = TrackingNMPC(ahead("reference")).solve(x0, target, visible, velocities=towards)
+    assert a.success and b.success
+    np.testing.assert_allclose(a.x, b.x, atol=1e-3)
+    np.testing.assert_allclose(a.u, b.u, atol=1e-2)
+    assert a.cost == pytest.approx(b.cost, rel=1e-6)
+    plain = RealTimeNMPC(_config(), max_iter=100, step_tol=1e-10).solve(
+        x0, target, visible, velocities=towards)
+    assert plain.status == "converged"
+
+    def clearance_ahead(plan):
+        """m: the rest point's distance to the region over the second after the horizon."""
+        h, n = _config().nmpc.prediction_step, _config().nmpc.horizon
+        region = next(v for v in visible if len(v))
+        return min(np.linalg.norm(region + towards[0] * t - plan.x[-1, :3], axis=1).min()
+                   for t in np.linspace((n + 1) * h, (n + 1) * h + 1.0, 11))
+
+    assert clearance_ahead(a) > clearance_ahead(plain) + 0.05
+
+
 def _window_of_crossing_5():
     """13.43 s into the moving study's crossing 5: the UAV hovering at (15.59, −13.97, 4.18) m,
     where the study's flight (smoothed metric, oracle) was, and the scene's regions where they
@@ -216,19 +319,22 @@ def _window_of_crossing_5():
 
 
 @pytest.mark.parametrize("prediction", ["oracle", "kalman"])
-def test_a_moving_margin_keeps_clear_where_the_papers_barrier_collides(prediction):
+def test_the_design_barrier_keeps_clear_where_the_papers_barrier_collides(prediction):
     """8 s of a crossing of the moving study. With the paper's barrier the region comes within a
     rotor arm of the UAV (the prediction sees it 0.35 s ahead, β = D − d_min lets it close
-    to √(2·d_min) = 1.41 m, and the escape starts too late); with d_min = 3 m² for a region
-    predicted to move (``moving_d_min``) the UAV backs off early and keeps more than a metre."""
+    to √(2·d_min) = 1.41 m, and the escape starts too late); with the study's design for
+    regions predicted to move (``catalogue.MOVING_DESIGN``, smoothed metric: a 3 m² margin)
+    the UAV backs off early and keeps more than a metre."""
+    from paper_repro.studies.catalogue import moving_design
+
     scene, x0 = _window_of_crossing_5()
     base = Config(nmpc=NMPCParams(prediction=prediction),
                   solver=SolverParams(line_search=True))
     clearance = {}
     for name, barrier in (("paper", base.barrier),
-                          ("moving", dataclasses.replace(base.barrier, moving_d_min=3.0))):
+                          ("design", moving_design(base.barrier, "smooth"))):
         cfg = dataclasses.replace(base, barrier=barrier)
         result = simulate(cfg, max_steps=800, scene=scene, initial_state=x0, progress=False)
         assert result.failures == 0
         clearance[name] = result.clearance.min()
-    assert clearance["paper"] < COLLISION_CLEARANCE < 1.0 < clearance["moving"]
+    assert clearance["paper"] < COLLISION_CLEARANCE < 1.0 < clearance["design"]

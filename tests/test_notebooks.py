@@ -62,7 +62,8 @@ STUDY_OUTPUTS = {
                             "moving_obstacles_thrusts.png", "moving_obstacles_crossing.png",
                             "moving_obstacles.gif", "moving_obstacles_rates.csv",
                             "moving_obstacles_rates.png", "moving_obstacles_summary.csv",
-                            "moving_obstacles_paired.csv", "moving_obstacles_paired.png"),
+                            "moving_obstacles_paired.csv", "moving_obstacles_paired.png",
+                            "moving_obstacles_design_paired.csv"),
     "11_timeline": ("timeline_levers.csv", "timeline_levers.png", "timeline_flights.csv",
                     "timeline_flights.png"),
 }
@@ -190,8 +191,10 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, executed
         rates = pd.read_csv(figures / "moving_obstacles_rates.csv")
         assert set(rates["prediction"]) == set(PREDICTIONS) and (rates["n"] == 2).all()
         assert set(rates["metric"]) == {"smooth", "euclidean"}
-        per_group = rates[rates["event"] != "collision"].groupby(["prediction", "metric"])["k"]
-        assert (per_group.sum() == 2).all()  # every run in exactly one class
+        assert set(rates.loc[rates["barrier"] == "design", "prediction"]) == {"oracle", "kalman"}
+        per_group = rates[rates["event"] != "collision"].groupby(
+            ["barrier", "prediction", "metric"])["k"]
+        assert len(per_group) == 10 and (per_group.sum() == 2).all()  # one class per run
         # the crossing flown with each prediction, past the meeting (t = 8 s)
         crossing = pd.read_csv(figures / "moving_obstacles_crossing.csv")
         assert list(crossing["prediction"]) == list(PREDICTIONS)
@@ -199,6 +202,8 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, executed
         assert crossing["t_closest_s"].between(7.0, 10.0).all()
         paired = pd.read_csv(figures / "moving_obstacles_paired.csv")
         assert set(paired["prediction"]) == {"oracle", "kalman"} and (paired["scenes"] == 2).all()
+        design = pd.read_csv(figures / "moving_obstacles_design_paired.csv")
+        assert set(design["prediction"]) == {"oracle", "kalman"} and (design["scenes"] == 2).all()
     elif name == "11_timeline":
         from paper_repro.studies.catalogue import CANDIDATES
         from paper_repro.studies.catalogue import TIMELINE_QUICK_STEPS as QUICK_STEPS
@@ -252,7 +257,7 @@ def test_tuning_notebook_draws_from_the_saved_study(quick_tuning, executed_copie
         assert (figures / f).is_file() and (figures / f).stat().st_size > 0, f
     summary = pd.read_csv(figures / "tuning_heldout_summary.csv")
     rates = summary[summary["kind"] == "rate"]
-    assert set(rates["setup"]) == {"printed", "best_chattering", "best_time"}
+    assert set(rates["setup"]) == {"printed", "best_chattering", "safest"}
     assert (rates["n"] == 2).all()
 
 

@@ -52,22 +52,36 @@ def test_studies_are_data_with_unique_names_and_one_name_per_flight():
     assert all(s.config.simulation.kind == "passage" for s in mc.specs + sweep.specs)
 
 
-def test_the_moving_study_flies_each_crossing_with_every_prediction():
-    """Random crossings x {static, oracle, kalman} x both metrics; static runs are keyed as any
-    static-prediction run, the others by their prediction."""
+def test_the_moving_study_flies_each_crossing_with_every_prediction_and_the_design():
+    """Random crossings x {static, oracle, kalman} x both metrics with the paper's barrier, then
+    x {oracle, kalman} x both metrics with the design barrier; the paper's rows are keyed as
+    before the design existed (its setting at its neutral value), the design's differ."""
+    from paper_repro.studies.catalogue import MOVING_DESIGN
+
     study = S.moving_obstacles(scenes=3)
-    assert len(study.specs) == 3 * 3 * 2
+    assert len(study.specs) == 3 * 3 * 2 + 3 * 2 * 2
     assert {s.config.simulation.scenario for s in study.specs} == {"random-crossing"}
+    labels = [dict(s.labels) for s in study.specs]
     predictions = [s.config.nmpc.prediction for s in study.specs]
-    assert set(predictions) == set(PREDICTIONS)
-    assert [dict(s.labels)["prediction"] for s in study.specs] == predictions
+    assert [lab["prediction"] for lab in labels] == predictions
+    paper = [s for s, lab in zip(study.specs, labels) if lab["barrier"] == "paper"]
+    design = [s for s, lab in zip(study.specs, labels) if lab["barrier"] == "design"]
+    assert {s.config.nmpc.prediction for s in paper} == set(PREDICTIONS)
+    assert {s.config.nmpc.prediction for s in design} == set(PREDICTIONS[1:])
+    assert all(s.config.barrier == Config().barrier for s in paper)
+    assert all(getattr(s.config.barrier, k) == v for s in design
+               for k, v in MOVING_DESIGN[s.config.distance.metric].items())
+    assert all("equilibrium_lookahead" not in s.config.key_dict()["barrier"] for s in paper)
+    assert len({s.name for s in study.specs}) == len(study.specs)
     assert study.specs[0].scene().is_moving
-    # One controller per worker and configuration: the prediction is part of the problem (the
-    # scan carries velocities), the scene and the seed are not.
-    keys = {dict(s.labels)["prediction"]: S.controller_key(s.config) for s in study.specs}
-    assert len(set(keys.values())) == 3
-    same = {S.controller_key(s.config) for s in study.specs
-            if dict(s.labels)["prediction"] == "oracle" and dict(s.labels)["metric"] == "smooth"}
+    # One controller per worker and configuration: the prediction and the barrier are part of
+    # the problem (the scan carries velocities), the scene and the seed are not.
+    keys = {(lab["barrier"], lab["prediction"]): S.controller_key(s.config)
+            for s, lab in zip(study.specs, labels)}
+    assert len(set(keys.values())) == 5
+    same = {S.controller_key(s.config) for s, lab in zip(study.specs, labels)
+            if lab["prediction"] == "oracle" and lab["metric"] == "smooth"
+            and lab["barrier"] == "paper"}
     assert len(same) == 1
 
 

@@ -6,6 +6,7 @@ one tiny passage of 40 steps, one LiDAR slot of 64 points.
 """
 
 import dataclasses
+import json
 import math
 
 import numpy as np
@@ -15,16 +16,21 @@ import pytest
 
 from paper_repro import Config, NMPCParams
 from paper_repro.studies import tuning as T
+from paper_repro.studies import tuning_scenes
 from paper_repro.studies.catalogue import passage_spec
 from paper_repro.studies.tuning_results import (
     best_setups,
     evaluate_heldout,
     load_study,
+    preset_config,
+    presets_from_setups,
     printed_position,
     trials_frame,
+    verdicts,
 )
 from paper_repro.studies.tuning_space import (
     DEFAULT_OBJECTIVES,
+    MIN_CLEARANCE,
     finished_trials,
     printed_params,
     search_space,
@@ -94,29 +100,70 @@ def _table(**cols):
 
 def test_objectives_are_scene_means_and_a_safe_trial_is_feasible():
     t = _table(hf_energy_fraction=[0.1, 0.3], time_to_complete_s=[40.0, 60.0],
-               min_clearance_m=[0.9, 0.7])
-    values, con = T.evaluate_table(t, ("hf_energy_fraction", "time_to_complete_s"))
+               min_clearance_m=[1.4, 1.2])
+    values, con = tuning_scenes.evaluate_table(t, ("hf_energy_fraction", "time_to_complete_s"))
     assert values == pytest.approx((0.2, 50.0))
-    assert con == pytest.approx((0.5 - 0.7, 0.0, 0.0)) and max(con) <= 0
+    assert con == pytest.approx((MIN_CLEARANCE - 1.2, 0.0, 0.0)) and max(con) <= 0
 
 
 def test_a_stall_a_collision_or_a_raised_run_makes_the_trial_infeasible():
     t = _table(completed=[True, False, True], stalled=[False, True, False],
                time_to_complete_s=[40.0, math.nan, 50.0],
                min_clearance_m=[1.0, 1.0, 0.3], collision=[False, False, True])
-    values, con = T.evaluate_table(t, ("time_to_complete_s",), time_limit_s=150.0)
+    values, con = tuning_scenes.evaluate_table(t, ("time_to_complete_s",), time_limit_s=150.0)
     assert values[0] == pytest.approx((40 + 150 + 50) / 3)  # the stall counts the limit
-    assert con == pytest.approx((0.2, 1.0, 1.0))
+    assert con == pytest.approx((MIN_CLEARANCE - 0.3, 1.0, 1.0))
     failed = _table(status=["ok", "failed"], hf_energy_fraction=[0.2, math.nan],
                     completed=[True, False])
-    values, con = T.evaluate_table(failed, ("hf_energy_fraction",))
+    values, con = tuning_scenes.evaluate_table(failed, ("hf_energy_fraction",))
     assert values[0] == pytest.approx(0.2) and con[2] == 1  # finite, and infeasible
+
+
+def test_a_scene_the_printed_set_up_stalls_on_costs_time_not_feasibility():
+    t = _table(scene_seed=[0, 4, 5], completed=[True, False, True],
+               stalled=[False, True, False], time_to_complete_s=[40.0, math.nan, 50.0])
+    values, con = tuning_scenes.evaluate_table(t, ("time_to_complete_s",), time_limit_s=150.0,
+                                   must_complete=(0, 5))
+    assert con[2] == 0 and values[0] == pytest.approx((40 + 150 + 50) / 3)
+    assert tuning_scenes.evaluate_table(t, ("time_to_complete_s",), must_complete=(0, 4))[1][2] == 1
+    assert tuning_scenes.evaluate_table(t, ("time_to_complete_s",))[1][2] == 1  # None: every scene
+
+
+def _printed_flights(outcomes):
+    """A stand-in for ``run_study`` that returns the printed flights ``{seed: (completed,
+    stalled, hf, clearance)}`` of the seeds asked."""
+    class Done:
+        def __init__(self, table):
+            self.table = table
+
+    def run_study(study, **kw):
+        seeds = [dict(s.labels)["scene_seed"] for s in study.specs]
+        rows = [dict(zip(("completed", "stalled", "hf_energy_fraction", "min_clearance_m"),
+                         outcomes[seed])) | {"scene_seed": seed} for seed in seeds]
+        t = pd.DataFrame(rows)
+        return Done(_table(**{c: list(t[c]) for c in t.columns}))
+    return run_study
+
+
+def test_training_scenes_mix_clean_stalling_and_chattering_ones(monkeypatch):
+    clean, stall, chat, close = (True, False, 0.02, 1.3), (False, True, 0.02, 1.3), \
+        (True, False, 0.9, 1.3), (True, False, 0.02, 0.8)
+    outcomes = {0: stall, 1: clean, 2: close, 3: chat, 4: clean, 5: stall, 6: clean, 7: chat,
+                8: clean, 9: clean}
+    monkeypatch.setattr(tuning_scenes, "run_study", _printed_flights(outcomes))
+    seeds, must = tuning_scenes.training_scenes(5, 3, candidates=range(10), log=lambda line: None)
+    # 2 clean (1, 4), 2 stalling (0, 5), 1 chattering (3); 2 is too close to count.
+    assert seeds == (0, 1, 3, 4, 5) and must == (1, 3, 4)
+    with pytest.raises(ValueError, match=r"too few .* 'chattering': '1 of 2'"):
+        tuning_scenes.training_scenes(5, 4, candidates=range(4), log=lambda line: None)
+    with pytest.raises(ValueError, match=r"hard must be an integer in \[0, scenes = 5\]"):
+        tuning_scenes.training_scenes(5, 6, candidates=range(10), log=lambda line: None)
 
 
 def test_without_required_completion_only_stalls_count():
     t = _table(completed=[False, False], stalled=[False, True])
-    assert T.evaluate_table(t, require_completion=False)[1][2] == 1
-    assert T.evaluate_table(t, require_completion=True)[1][2] == 2
+    assert tuning_scenes.evaluate_table(t, require_completion=False)[1][2] == 1
+    assert tuning_scenes.evaluate_table(t, require_completion=True)[1][2] == 2
 
 
 # --- the front ------------------------------------------------------------------------------
@@ -151,11 +198,44 @@ def test_an_infeasible_trial_is_never_reported_as_best():
     # Optuna's own front (constraints from the system attribute) agrees.
     assert {t.number for t in study.best_trials} == {0, 2, 3}
     best = best_setups(frame)
-    assert best["best_chattering"]["trial"] == 2 and best["best_time"]["trial"] == 3
+    assert best["best_chattering"]["trial"] == 2 and best["safest"]["trial"] == 2
     pos = printed_position(frame)
     assert pos["on_front"] and pos["dominated_by"] == 0
     # The sampler sees the same constraints.
     assert T.trial_constraints(study.trials[1]) == [0.4, 1.0, 2.0]
+
+
+def test_the_safest_set_up_is_the_clearest_front_point_that_chatters_less_than_printed():
+    study = _study_by_hand([
+        (0.8, 0.10, 50.0, (-0.2, 0.0, 0.0)),   # printed
+        (1.0, 0.01, 60.0, (-0.05, 0.0, 0.0)),  # best on chattering, close to the margin
+        (1.2, 0.05, 55.0, (-0.4, 0.0, 0.0)),   # clearer, still calmer than printed
+        (1.4, 0.20, 40.0, (-0.9, 0.0, 0.0)),   # clearest, but chatters more than printed
+    ])
+    best = best_setups(trials_frame(study))
+    assert best["best_chattering"]["trial"] == 1 and best["safest"]["trial"] == 2
+    assert best["safest"]["sigma"] == 1.2
+
+
+def test_a_tuned_set_up_is_offered_only_without_held_out_collisions_and_lost_completions(
+        tmp_path):
+    t = pd.concat([
+        _table(completed=[True, True, False]).assign(setup="printed"),
+        _table(collision=[False, True, False]).assign(setup="best_chattering"),
+        _table(completed=[True, False, False]).assign(setup="safest"),
+        _table(completed=[True] * 3).assign(setup="calm"),
+    ], ignore_index=True)
+    v = verdicts(t)
+    assert v["printed"]["offered"] and v["calm"]["offered"]
+    assert not v["best_chattering"]["offered"] and "1/3 held-out collisions" in \
+        v["best_chattering"]["why"]
+    assert not v["safest"]["offered"] and "fewer than the printed set-up's 2/3" in \
+        v["safest"]["why"]
+    setups = {s: printed_params() for s in v}
+    (tmp_path / "presets.json").write_text(json.dumps(presets_from_setups(setups, None, v)))
+    assert preset_config("calm", tmp_path) == Config()
+    with pytest.raises(ValueError, match=r"'safest' is not offered .*fewer than"):
+        preset_config("safest", tmp_path)
 
 
 def test_no_feasible_trial_means_no_front_to_pick_from():
@@ -227,13 +307,13 @@ def test_a_study_stored_before_the_solver_options_moved_resumes_as_the_same_stud
 
 
 def test_heldout_scenes_are_never_training_scenes_and_shared_setups_fly_once(tmp_path):
-    setups = {"printed": printed_params(TINY), "best_time": printed_params(TINY)}
+    setups = {"printed": printed_params(TINY), "safest": printed_params(TINY)}
     with pytest.raises(ValueError, match=r"held-out scenes must never be training .* \[3\]"):
         evaluate_heldout(setups, seeds=(3,), train_seeds=(3,), workers=0)
     table = evaluate_heldout(setups, seeds=(60,), max_steps=30, base=TINY, workers=0,
                                out=tmp_path / "h", runs_dir=tmp_path / "runs",
                                log=lambda line: None)
-    assert list(table["setup"]) == ["printed", "best_time"]
+    assert list(table["setup"]) == ["printed", "safest"]
     assert table["result_dir"].nunique() == 1  # one flight serves both set-ups
-    spec = T.tuning_spec(printed_params(TINY), 60, 30, TINY)
+    spec = tuning_scenes.tuning_spec(printed_params(TINY), 60, 30, TINY)
     assert spec.name == passage_spec(60, max_steps=30, base=TINY).name  # Monte Carlo's cache

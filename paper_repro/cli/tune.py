@@ -9,9 +9,9 @@ from paper_repro import paths
 from paper_repro.config import Config
 from paper_repro.paths import tuning_dir
 from paper_repro.studies.tuning import (
+    DEFAULT_HARD,
     DEFAULT_SCENES,
     DEFAULT_TRIALS,
-    HELDOUT_SEEDS,
     QUICK,
     TuningSettings,
     check_tune_args,
@@ -19,6 +19,7 @@ from paper_repro.studies.tuning import (
     tuning_client,
 )
 from paper_repro.studies.tuning_results import run_heldout
+from paper_repro.studies.tuning_scenes import HELDOUT_SEEDS
 from paper_repro.studies.tuning_space import DEFAULT_OBJECTIVES, OBJECTIVES, finished_trials
 
 HELP = ("tune eta, sigma, d_min, kappa, mu, delta with Optuna on random passages; "
@@ -49,6 +50,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--scenes", type=positive_int, default=None,
                         help=f"training scenes (default {DEFAULT_SCENES}; "
                              f"{QUICK['scenes']} with --quick)")
+    parser.add_argument("--hard", type=int, default=None,
+                        help=f"how many training scenes are ones where the printed set-up "
+                             f"stalls or chatters (default {DEFAULT_HARD}; "
+                             f"{QUICK['hard']} with --quick)")
     parser.add_argument("--heldout", type=int, default=None,
                         help=f"held-out scenes (default {len(HELDOUT_SEEDS)}; "
                              f"{QUICK['heldout']} with --quick; 0 skips the evaluation)")
@@ -77,7 +82,8 @@ def main(args) -> int:
     log = lambda line: print(line, flush=True)  # noqa: E731
     # Everything is checked before a cluster is started or a scene flown.
     check_tune_args(trials, quick, args.workers, args.scheduler, args.storage, None,
-                     args.objectives, args.scenes, None, args.sampler, None, Config())
+                     args.objectives, args.scenes, None, args.sampler, None, Config(),
+                     args.hard)
     for name in ("heldout", "seed"):
         if getattr(args, name) is not None and getattr(args, name) < 0:
             raise ValueError(f"--{name} must be an integer >= 0, got {getattr(args, name)}")
@@ -85,6 +91,7 @@ def main(args) -> int:
     with tuning_client(args.workers, args.scheduler, None, log) as client:
         settings = TuningSettings(trials, quick=quick, storage=args.storage,
                                   objectives=args.objectives, scenes=args.scenes,
+                                  hard=args.hard,
                                   sampler=args.sampler, seed=args.seed, out=out)
         res = tune(settings, client=client, log=log)
         if heldout:

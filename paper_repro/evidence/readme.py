@@ -224,19 +224,20 @@ def sensing_window() -> str:
 
 
 def moving_obstacles() -> str:
-    """``figures/studies/moving_obstacles/``: collisions per prediction and metric."""
+    """``figures/studies/moving_obstacles/``: collisions per barrier, prediction and metric."""
     folder = paths.figures_dir() / "studies" / "moving_obstacles"
     rates = pd.read_csv(folder / "moving_obstacles_rates.csv").set_index(
-        ["prediction", "metric", "event"])
+        ["barrier", "prediction", "metric", "event"])
     summary = pd.read_csv(folder / "moving_obstacles_summary.csv").set_index(
-        ["prediction", "metric"])
+        ["barrier", "prediction", "metric"])
     rows = []
-    for prediction in ("static", "oracle", "kalman"):
-        row = [prediction]
+    for barrier, prediction in dict.fromkeys((b, p) for b, p, _ in summary.index):
+        row = [barrier, prediction]
         for metric in ("smooth", "euclidean"):
-            c = rates.loc[(prediction, metric, "collision")]
+            c = rates.loc[(barrier, prediction, metric, "collision")]
             row.append(f"{int(c.k)}/{int(c.n)} [{100 * c.low:.0f}, {100 * c.high:.0f}] %")
-        s, e = summary.loc[(prediction, "smooth")], summary.loc[(prediction, "euclidean")]
+        s = summary.loc[(barrier, prediction, "smooth")]
+        e = summary.loc[(barrier, prediction, "euclidean")]
         row += [f"{s.min_clearance_median_m:.3f} / {e.min_clearance_median_m:.3f} m",
                 f"{s.min_clearance_min_m:.3f} / {e.min_clearance_min_m:.3f} m",
                 f"{s.tv_u_rate_median_N_per_s:.3g} / {e.tv_u_rate_median_N_per_s:.3g} N/s",
@@ -245,10 +246,11 @@ def moving_obstacles() -> str:
                 f"{_share(s.cbf_condition_violated_share_median)} / "
                 f"{_share(e.cbf_condition_violated_share_median)}"]
         rows.append(row)
-    return markdown_table(["prediction", "collisions, smoothed", "collisions, Euclidean",
-                      "min clearance, median (smoothed / Euclidean)", "closest approach",
-                      "TV of u, median", "completed", "failed solves",
-                      "steps breaking (15) with a region in view, median"], rows)
+    return markdown_table(["barrier", "prediction", "collisions, smoothed",
+                           "collisions, Euclidean",
+                           "min clearance, median (smoothed / Euclidean)", "closest approach",
+                           "TV of u, median", "completed", "failed solves",
+                           "steps breaking (15) with a region in view, median"], rows)
 
 
 def avoidability() -> str:
@@ -304,29 +306,94 @@ def timeline() -> str:
 
 
 def tuning() -> str:
-    """``figures/tuning/``: the front (``tuning_pareto.csv``) and the held-out passages per
-    set-up (``tuning_heldout_summary.csv``), then the chosen set-up against the printed one,
-    scene by scene."""
+    """``figures/tuning/``: the front (``tuning_pareto.csv``), the held-out passages per
+    set-up (``tuning_heldout_summary.csv``), each tuned set-up against the printed one, scene
+    by scene, and which set-ups are offered as presets (``presets.json``)."""
+    import json
+
     folder = paths.figures_dir() / "tuning"
     front = pd.read_csv(folder / "tuning_pareto.csv")
     rows = [[f"{r.number}", f"{r.eta:g} m", f"{r.sigma:g} m", f"{r.d_min:g} m²",
              f"{r.kappa:g}", f"{r.mu:g}", f"{r.delta:g}", _share(r.hf_energy_fraction),
-             f"{r.time_to_complete_s:.1f} s"] for r in front.itertuples()]
+             f"{r.time_to_complete_s:.1f} s", f"{r.min_clearance_m:.2f} m"]
+            for r in front.itertuples()]
     parts = ["*The front (training passages)*\n\n" + markdown_table(
-        ["trial", "η", "σ", "d_min", "κ", "μ", "δ", "power > 5 Hz", "time to complete"], rows)]
+        ["trial", "η", "σ", "d_min", "κ", "μ", "δ", "power > 5 Hz", "time to complete",
+         "min clearance"], rows)]
     table = pd.read_csv(folder / "tuning_heldout_summary.csv")
+    parts.append("*Held-out passages*\n\n" + _heldout_rates(table))
+    presets = json.loads((folder / "presets.json").read_text())
+    for setup in dict.fromkeys(table.loc[table["kind"] == "paired", "setup"]):
+        trial = presets.get(setup, {}).get("trial")
+        paired = table[(table["kind"] == "paired") & (table["setup"] == setup)]
+        paired = paired.rename(columns={"median_printed": "median_smooth",
+                                        f"median_{setup}": "median_euclidean"})
+        parts.append(f"*{setup} (trial {trial}) against printed, per held-out scene*\n\n"
+                     + _paired(paired, "printed", setup))
+    parts.append(_offered(presets))
+    return "\n\n".join(parts)
+
+
+def _heldout_rates(table: pd.DataFrame) -> str:
+    """Completed, collision, stalled and step-limit rates per held-out set-up."""
     rates = table[table["kind"] == "rate"].set_index(["setup", "event"])
     setups = list(dict.fromkeys(rates.index.get_level_values(0)))
     rows = [[label, *(_rate(rates.loc[(s, event)]) for s in setups)]
             for event, label in (("completed", "completed"), ("collision", "collision"),
                                  ("stalled", "stalled"), ("step_limit", "step limit"))]
-    parts.append("*Held-out passages*\n\n" + markdown_table(["", *setups], rows))
-    paired = table[(table["kind"] == "paired") & (table["setup"] == "best_chattering")]
-    paired = paired.rename(columns={"median_printed": "median_smooth",
-                                    "median_best_chattering": "median_euclidean"})
-    parts.append("*best_chattering against printed, per held-out scene*\n\n"
-                 + _paired(paired, "printed", "best_chattering"))
-    return "\n\n".join(parts)
+    return markdown_table(["", *setups], rows)
+
+
+def _offered(presets: dict) -> str:
+    """One sentence: the tuned set-ups offered as presets, or none and why."""
+    tuned = {k: v for k, v in presets.items() if k != "printed"}
+    offered = [k for k, v in tuned.items() if v.get("offered")]
+    if offered:
+        return ("Offered as a preset (`studies.tuning_results.preset_config`): "
+                + "; ".join(f"`{k}` ({tuned[k]['why']})" for k in offered) + ".")
+    return ("No tuned set-up is offered as a preset: "
+            + "; ".join(f"`{k}`: {v.get('why', 'not evaluated')}" for k, v in tuned.items())
+            + ".")
+
+
+def beyond() -> str:
+    """Beyond the paper, for the README: the moving crossings with the paper's barrier and the
+    design (``moving_obstacles_rates.csv``), whether they were avoidable (``avoidability.csv``),
+    and the tuning's held-out passages."""
+    import json
+
+    figs = paths.figures_dir()
+    moving = pd.read_csv(figs / "studies" / "moving_obstacles" /
+                         "moving_obstacles_rates.csv").set_index(["barrier", "prediction",
+                                                                  "metric", "event"])
+    avoid = pd.read_csv(figs / "studies" / "avoidability" / "avoidability.csv")
+    tuned = pd.read_csv(figs / "tuning" / "tuning_heldout_summary.csv")
+    presets = json.loads((figs / "tuning" / "presets.json").read_text())
+
+    def collided(barrier: str, prediction: str) -> str:
+        return ", ".join(
+            f"{label} {_rate(moving.loc[(barrier, prediction, metric, 'collision')])}"
+            for metric, label in (("smooth", "smoothed"), ("euclidean", "Euclidean")))
+
+    n = int(moving.loc[("paper", "oracle", "smooth", "collision")].n)
+    rows = [["moving regions, the paper's barrier",
+             f"collisions over {n} crossings: static prediction {collided('paper', 'static')}; "
+             f"oracle {collided('paper', 'oracle')}; Kalman {collided('paper', 'kalman')}",
+             "`moving_obstacles_rates.csv`"],
+            ["... could a vehicle as agile have passed?",
+             f"a clear passage exists for {int(avoid['avoidable'].sum())} of {len(avoid)} "
+             "crossings (point mass with the quadrotor's bounds and full foresight)",
+             "`avoidability.csv`"],
+            ["... with the design barrier for moving regions (`studies.catalogue.MOVING_DESIGN`)",
+             f"collisions over {n} crossings: oracle {collided('design', 'oracle')}; Kalman "
+             f"{collided('design', 'kalman')}", "`moving_obstacles_rates.csv`"]]
+    rates = tuned[tuned["kind"] == "rate"].set_index(["setup", "event"])
+    rows.append(["tuned parameters, held-out passages", "; ".join(
+        f"{s}: completed {_rate(rates.loc[(s, 'completed')])}, collisions "
+        f"{_rate(rates.loc[(s, 'collision')])}"
+        for s in dict.fromkeys(rates.index.get_level_values(0))) + ". " + _offered(presets),
+        "`tuning_heldout_summary.csv`, `presets.json`"])
+    return markdown_table(["beyond the paper", "measured here", "table"], rows)
 
 
 def regeneration() -> str:
@@ -415,7 +482,8 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "monte_carlo": monte_carlo,
     "eta_sweep": eta_sweep, "sensor_noise": sensor_noise, "sensing_window": sensing_window,
     "moving_obstacles": moving_obstacles, "avoidability": avoidability,
-    "moving_levers": moving_levers, "timeline": timeline, "tuning": tuning}
+    "moving_levers": moving_levers, "timeline": timeline, "tuning": tuning,
+    "beyond": beyond}
 """Every generated block of the README, by name."""
 
 _BLOCK = re.compile(r"(<!-- begin (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-- end (?P=name) -->)",

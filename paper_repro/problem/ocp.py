@@ -93,7 +93,8 @@ class OCP:
         self.scan = ScanLayout(d.metric, d.eta, d.sigma, b.d_min, p.region_slots,
                                p.points_per_region, self.ny, d.window,
                                cfg.sensor.range, p.prediction != "static",
-                               b.reaction_time, b.sweep_time, b.moving_d_min)
+                               b.reaction_time, b.sweep_time, b.moving_d_min,
+                               b.equilibrium_lookahead)
         self.step = p.prediction_step
 
     # Cost terms, as residuals r whose squared norm is the term: the Gauss-Newton solver needs

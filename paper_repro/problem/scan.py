@@ -60,6 +60,10 @@ class ScanLayout:
         t_s seconds (:data:`SWEEP_SAMPLES` copies).
     moving_d_min : m² (0: off), with ``moving`` only: the margin of a region predicted to
         move, ramped in between the speeds of :data:`MOVING_SPEEDS`.
+    equilibrium_lookahead : t_a, s (0: off), with ``moving`` only: β at the artificial
+        equilibrium y_a (``beta(y, tau, at_equilibrium=True)``) is that of the region's path
+        over the t_a seconds after the horizon (:data:`SWEEP_SAMPLES` copies), so the point
+        the prediction rests at must stay clear of where the region is going.
     """
 
     metric: str
@@ -75,6 +79,7 @@ class ScanLayout:
     reaction_time: float = 0.0
     sweep_time: float = 0.0
     moving_d_min: float = 0.0
+    equilibrium_lookahead: float = 0.0
 
     @property
     def size(self) -> int:
@@ -175,8 +180,10 @@ class ScanLayout:
 
         Returns ``(params, beta, active)``: ``params`` is the slot's parameter column,
         ``beta(y, tau)`` the CasADi expression for a (p, 1) output y at ``tau`` seconds after
-        the scan, and ``active`` the slot's flag. A moving region is the scanned cloud
-        translated by v·τ, and for a rigid translation D^{A+c}(y) = D^A(y − c): β(y − v·τ).
+        the scan (moving layouts take ``at_equilibrium=True`` for y = y_a, see
+        ``equilibrium_lookahead``), and ``active`` the slot's flag. A moving region is the
+        scanned cloud translated by v·τ, and for a rigid translation D^{A+c}(y) = D^A(y − c):
+        β(y − v·τ).
         Static (the paper), ``tau`` is ignored.
         """
         cap, dim = self.capacity, self.dim
@@ -198,8 +205,10 @@ class ScanLayout:
             return params, lambda yy, tau=0.0: beta_fn(yy, pts, *extra), active
         velocity = ca.SX.sym("velocity", dim)
         params = ca.vertcat(ca.vec(pts), *extra, active, velocity)
-        if self.sweep_time == 0 and self.moving_d_min == 0 and self.reaction_time == 0:
-            return params, lambda yy, tau=0.0: beta_fn(yy - velocity * tau, pts, *extra), active
+        if (self.sweep_time == 0 and self.moving_d_min == 0 and self.reaction_time == 0
+                and self.equilibrium_lookahead == 0):
+            return (params, lambda yy, tau=0.0, at_equilibrium=False:
+                    beta_fn(yy - velocity * tau, pts, *extra), active)
         # ‖v‖ of a parameter: never differentiated, so its kink at v = 0 does not matter.
         speed = ca.norm_2(velocity)
         lo, hi = MOVING_SPEEDS
@@ -211,36 +220,45 @@ class ScanLayout:
         if self.reaction_time > 0:
             margin = 0.5 * (ca.sqrt(2.0 * margin) + speed * self.reaction_time) ** 2
         extra_margin = margin - self.d_min  # beta_fn already subtracts d_min
-        if self.sweep_time == 0:
-            return (params, lambda yy, tau=0.0: beta_fn(yy - velocity * tau, pts, *extra)
-                    - extra_margin, active)
-        leads = np.linspace(0.0, self.sweep_time, SWEEP_SAMPLES)
 
-        def beta(yy, tau=0.0):
-            copies = [beta_fn(yy - velocity * (tau + s), pts, *extra) for s in leads]
+        def swept(yy, tau, span):
+            """β of the region's path from τ to τ + span (the region itself when span = 0)."""
+            if span == 0:
+                return beta_fn(yy - velocity * tau, pts, *extra)
+            copies = [beta_fn(yy - velocity * (tau + s), pts, *extra)
+                      for s in np.linspace(0.0, span, SWEEP_SAMPLES)]
             if self.metric == "euclidean":
                 # the exact distance to the union of the copies (they coincide at rest)
-                return ca.mmin(ca.vertcat(*copies)) - extra_margin
+                return ca.mmin(ca.vertcat(*copies))
             # D of the union of the region now and its copies ahead, these weighted by
             # `in_motion`: −η ln(e^{−D_0/η} + moving·Σ_{k≥1} e^{−D_k/η}), never above D_0 (never
             # less safe than the region now) and D_0 itself at rest. Shifted by the least
             # D_k so that no exponential overflows.
             low = ca.mmin(ca.vertcat(*copies))
             ahead = sum(ca.exp(-(c - low) / self.eta) for c in copies[1:])
-            swept = low - self.eta * ca.log(ca.exp(-(copies[0] - low) / self.eta)
-                                            + in_motion * ahead)
-            return swept - extra_margin
+            return low - self.eta * ca.log(ca.exp(-(copies[0] - low) / self.eta)
+                                           + in_motion * ahead)
+
+        def beta(yy, tau=0.0, at_equilibrium=False):
+            span = self.sweep_time + (self.equilibrium_lookahead if at_equilibrium else 0.0)
+            return swept(yy, tau, span) - extra_margin
         return params, beta, active
 
     def barriers(self):
         """Every slot at once: ``(params, beta, active)`` with ``params`` the scan's parameter
-        column, ``beta(y, tau)`` the (slots,) expression of β at output y, ``tau`` s after the
-        scan, and ``active`` the (slots,) flags."""
+        column, ``beta(y, tau, at_equilibrium=False)`` the (slots,) expression of β at output
+        y, ``tau`` s after the scan (``at_equilibrium``: y is the artificial equilibrium y_a,
+        see ``equilibrium_lookahead``), and ``active`` the (slots,) flags."""
         slots = [self.region_barrier() for _ in range(self.slots)]
         params = ca.vertcat(*[s[0] for s in slots])
         active = ca.vertcat(*[s[2] for s in slots])
-        return (params, (lambda y, tau=0.0: ca.vertcat(*[s[1](y, tau) for s in slots])),
-                active)
+        if self.moving:
+            def beta(y, tau=0.0, at_equilibrium=False):
+                return ca.vertcat(*[s[1](y, tau, at_equilibrium) for s in slots])
+        else:
+            def beta(y, tau=0.0, at_equilibrium=False):
+                return ca.vertcat(*[s[1](y, tau) for s in slots])
+        return params, beta, active
 
 
 # --- the one accepted form of inputs -----------------------------------------------------------

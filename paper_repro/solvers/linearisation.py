@@ -43,11 +43,15 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
     tau = ca.SX.sym("tau")
     if scan.moving:
         beta_fn = ca.Function("beta", [y, params, tau], [beta_slots(y, tau)])
+        beta_a_fn = (ca.Function("beta_a", [y, params, tau], [beta_slots(y, tau, True)])
+                     if scan.equilibrium_lookahead > 0 else beta_fn)
     else:
         beta_fn = ca.Function("beta", [y, params], [beta_slots(y)])
 
-    def beta(yy, pp, when=0.0):
-        return beta_fn(yy, pp, when) if scan.moving else beta_fn(yy, pp)
+    def beta(yy, pp, when=0.0, at_equilibrium=False):
+        if not scan.moving:
+            return beta_fn(yy, pp)
+        return (beta_a_fn if at_equilibrium else beta_fn)(yy, pp, when)
 
     def terms(residual, penalties, v):
         """The stage's cost ‖r‖² + μ Σ active·F(g) and, unless ``values_only``, its exact
@@ -100,7 +104,7 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
     # x_a = f(x_a, u_a) without a parametrisation).
     vn = ca.vertcat(x, a, s)
     y_a = h(x_a)
-    bn, ba = beta(h(x), params, tau), beta(y_a, params, tau + ocp.step)
+    bn, ba = beta(h(x), params, tau), beta(y_a, params, tau + ocp.step, at_equilibrium=True)
     gn_terms = []
     for i in range(ns):
         gn_terms += [(ocp.violation(s[i], bn[i]), active[i]),

@@ -8,6 +8,7 @@
 ``cluster``         the one Dask set-up, for studies and tuning
 ``reproduce``       :func:`reproduce`: fly the paper's missions, run every notebook
 ``tuning_space``    the tuning's search space, objectives and constraints
+``tuning_scenes``   its training and held-out scenes, a trial's runs and its score
 ``tuning``          :func:`tune`: Optuna over random passages
 ``tuning_results``  reading a tuning: trials, front, importances, held-out comparison
 ==================  ==================================================================

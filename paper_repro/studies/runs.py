@@ -84,11 +84,11 @@ class RunSpec:
 
 
 def run_key(config: Config, max_steps: int, scene_fingerprint: str) -> str:
-    """SHA-256 (hex) of a run: ``config.to_dict()``, ``max_steps``, the scene fingerprint and
-    the golden hash (the code's behaviour)."""
+    """SHA-256 (hex) of a run: ``config.key_dict()`` (:data:`~paper_repro.config.ADDED`),
+    ``max_steps``, the scene fingerprint and the golden hash (the code's behaviour)."""
     from paper_repro.evidence.golden import golden_hash
 
-    return _hash({"config": config.to_dict(), "max_steps": int(max_steps),
+    return _hash({"config": config.key_dict(), "max_steps": int(max_steps),
                   "scene": scene_fingerprint, "golden": golden_hash()})
 
 

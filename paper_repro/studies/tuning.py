@@ -14,34 +14,41 @@ parameters were hand-picked for one scene, and four of ours (κ, ε, d_min, λ) 
   scenes (the mean over scenes): a chattering measure (share of thrust power above 5 Hz, or the
   total variation of u per second) and the time to complete the passage;
 * the *constraints* are Optuna's (``constraints_func``, a value ≤ 0 is feasible), so an unsafe
-  trial is infeasible to the sampler rather than merely penalised: minimum clearance ≥ 0.5 m
-  over all scenes, no collision, and every scene completed (no stall, no step limit, no raised
-  run); see :data:`CONSTRAINTS`;
+  trial is infeasible to the sampler rather than merely penalised: minimum clearance ≥ 1 m
+  over all scenes (:data:`~paper_repro.studies.tuning_space.MIN_CLEARANCE` says why 1 m), no
+  collision, and every scene the printed set-up completes completed (no stall, no step limit,
+  no raised run); see :data:`CONSTRAINTS`;
 * the storage is an RDB URL (SQLite in ``figures/tuning/tuning.db`` by default), so an
   interrupted study resumes where it stopped (:func:`tune` counts the finished trials and flies
   only the missing ones; the flights of an interrupted trial come back from the run cache), and
   ``optuna-dashboard sqlite:///figures/tuning/tuning.db`` opens it.
 
-Then :func:`evaluate_heldout` flies three set-ups, the printed parameters (with our chosen
-defaults), the Pareto point best on chattering and the one best on time, on held-out scenes
-never used in tuning, and :func:`heldout_summary` compares them with confidence intervals.
+Then :func:`~paper_repro.studies.tuning_results.evaluate_heldout` flies three set-ups, the
+printed parameters (with our chosen defaults), the Pareto point best on chattering and the
+front's safest point that chatters less than the printed set-up, on 30 held-out scenes never
+used in tuning, and :func:`~paper_repro.studies.tuning_results.heldout_summary` compares them
+with confidence intervals. A tuned set-up is offered as a preset only when it has no held-out
+collision and completes at least as many held-out passages as the printed set-up.
 ``python -m paper_repro tune`` does all of it and executes notebook ``12_tuning``.
 
 Training and held-out scenes. Under the printed parameters a good share of random passages
-stall (the NMPC is local and deadlocks in front of some walls). Asking "no stall on any training
-scene" of scenes where even the printed set-up stalls would make nearly every trial infeasible
-and teach the sampler nothing, so the training scenes are the first ``scenes`` seeds of
-:data:`TRAIN_CANDIDATES` on which the printed set-up completes with at least 0.5 m of
-clearance (:func:`training_scenes`; the printed flights are shared with the Monte Carlo study's
-cache). This favours the printed set-up on the training scenes, by design and in the open. The
-held-out scenes (:data:`HELDOUT_SEEDS`) are taken whatever the printed set-up does on them,
-and never overlap the candidates, so their stall rates are an unbiased comparison.
+stall (the NMPC is local and deadlocks in front of some walls) or chatter (a share of thrust
+power above 5 Hz near 1). A training set of easy scenes only would teach the sampler nothing
+about either, and one where every trial must complete a scene the printed set-up stalls on
+would make nearly every trial infeasible. So
+:func:`~paper_repro.studies.tuning_scenes.training_scenes` takes, in candidate order,
+``scenes − hard`` scenes the printed set-up flies cleanly (completed, clearance ≥ 1 m, share
+above 5 Hz below :data:`~paper_repro.studies.tuning_scenes.CHATTERING`), and ``hard`` scenes
+where it does not: half where it stalls or reaches the step limit, half where it completes but
+chatters. A trial must complete the scenes the printed set-up completes; on the ones it stalls
+on, a trial that gets through gains time. The printed flights are shared with the Monte Carlo
+study's cache. The held-out scenes are taken whatever the printed set-up does on them, and
+never overlap the candidates, so their rates are an unbiased comparison.
 """
 
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import json
 import math
 import os
@@ -58,19 +65,18 @@ from paper_repro.paths import tuning_dir
 from paper_repro.studies.catalogue import (
     PASSAGE_STEPS,
     QUICK_STEPS,
-    Study,
-    passage_config,
-    passage_spec,
 )
 from paper_repro.studies.cluster import dask_client
 from paper_repro.studies.engine import run_study
-from paper_repro.studies.runs import RunSpec
+from paper_repro.studies.tuning_scenes import (
+    _check_disjoint,
+    evaluate_table,
+    training_scenes,
+    trial_study,
+)
 from paper_repro.studies.tuning_space import (
     CONSTRAINTS,
     DEFAULT_OBJECTIVES,
-    MIN_CLEARANCE,
-    TUNABLE,
-    apply_params,
     check_objectives,
     finished_trials,
     printed_params,
@@ -81,96 +87,13 @@ from paper_repro.studies.tuning_space import (
 # --- the search space ----------------------------------------------------------------------
 
 
-TRAIN_CANDIDATES = tuple(range(0, 60))
-"""Seeds from which the training scenes are drawn (the first where the printed set-up
-completes), shared with the Monte Carlo study's cache."""
-
-HELDOUT_SEEDS = tuple(range(60, 80))
-"""The held-out scenes: 20 seeds never among the training candidates, taken whatever the
-printed set-up does on them."""
-
-QUICK = {"trials": 4, "scenes": 2, "heldout": 2, "max_steps": QUICK_STEPS}
+QUICK = {"trials": 4, "scenes": 2, "hard": 0, "heldout": 2, "max_steps": QUICK_STEPS}
 """``--quick``: a few trials of 400-step runs (every part exercised, nothing proved)."""
 
-DEFAULT_TRIALS = 40
-DEFAULT_SCENES = 4
+DEFAULT_TRIALS = 60
+DEFAULT_SCENES = 12
+DEFAULT_HARD = 4
 STUDY_NAME = "cbf_nmpc"
-
-
-# --- runs of a trial -------------------------------------------------------------------------
-
-def tuning_spec(params: Mapping[str, float], seed: int, max_steps: int = PASSAGE_STEPS,
-                base: Config | None = None) -> RunSpec:
-    """The passage through random scene ``seed`` under ``base`` with ``params`` set.
-
-    When only η and σ differ from ``base`` this is
-    :func:`~paper_repro.studies.catalogue.passage_spec`
-    itself (same name, same cache folder as the Monte Carlo and η studies); otherwise the name
-    lists all six values.
-    """
-    base = base or Config()
-    cfg = passage_config(apply_params(base, params), seed, max_steps)
-    labels = tuple((n, float(getattr(getattr(cfg, TUNABLE[n]), n))) for n in TUNABLE)
-    if cfg.barrier == base.barrier:
-        spec = passage_spec(seed, "smooth", cfg.distance.eta, cfg.distance.sigma, max_steps,
-                            base)
-        return dataclasses.replace(spec, labels=spec.labels + labels[2:])
-    d, b = cfg.distance, cfg.barrier
-    name = (f"passage-smooth-eta{d.eta:g}-sigma{d.sigma:g}-dmin{b.d_min:g}-kappa{b.kappa:g}"
-            f"-mu{b.mu:g}-delta{b.delta:g}-s{seed:03d}")
-    return RunSpec(name, cfg, int(max_steps),
-                   (("metric", "smooth"), *labels, ("scene_seed", int(seed))))
-
-
-def trial_study(params: Mapping[str, float], seeds: Sequence[int], max_steps: int,
-                base: Config | None = None, name: str = "trial") -> Study:
-    """One trial's flights as a :class:`~paper_repro.studies.catalogue.Study`: ``params`` on each
-    seed."""
-    return Study(name, tuple(tuning_spec(params, s, max_steps, base) for s in seeds),
-                 f"tuning trial {params}")
-
-
-def evaluate_table(table, objectives: Sequence[str] = DEFAULT_OBJECTIVES,
-                   require_completion: bool = True, time_limit_s: float = PASSAGE_STEPS * 0.01
-                   ) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """A trial's objective values and constraint values from its study table.
-
-    Parameters
-    ----------
-    table : one row per scene (:func:`~paper_repro.studies.engine.run_study`).
-    objectives : names from :data:`OBJECTIVES`; each is the mean over scenes. A scene that did
-        not complete counts ``time_limit_s`` as its time and a run that raised counts the worst
-        chattering of the other scenes (or +inf): the trial is infeasible anyway, these only
-        keep its values finite and ordered for the sampler.
-    require_completion : a scene that reached its step limit counts as not completed (``False``
-        for ``--quick`` runs, which all stop at their step limit: then only stalls and raised
-        runs count).
-    time_limit_s : s.
-
-    Returns
-    -------
-    values : one per objective.
-    constraints : one per :data:`CONSTRAINTS`, ≤ 0 when satisfied.
-    """
-    objectives = check_objectives(objectives)
-    ok = table["status"] == "ok"
-    values = []
-    for o in objectives:
-        if o == "time_to_complete_s":
-            v = np.where(ok & table["completed"].fillna(False).astype(bool),
-                         table[o].astype(float), time_limit_s)
-        else:
-            v = table[o].where(ok).astype(float).to_numpy()
-            worst = np.nanmax(v) if np.any(np.isfinite(v)) else math.inf
-            v = np.where(np.isfinite(v), v, worst)
-        values.append(float(np.mean(v)))
-    clear = table["min_clearance_m"].where(ok).astype(float)
-    shortfall = MIN_CLEARANCE - (float(clear.min()) if clear.notna().any() else 0.0)
-    collisions = int((ok & table["collision"].fillna(False).astype(bool)).sum())
-    done = ok & (table["completed"].fillna(False).astype(bool) if require_completion
-                 else ~table["stalled"].fillna(False).astype(bool))
-    not_completed = int((~done).sum())
-    return tuple(values), (float(shortfall), float(collisions), float(not_completed))
 
 
 # --- the study ------------------------------------------------------------------------------
@@ -201,9 +124,12 @@ class TuningSettings:
         for :data:`~paper_repro.studies.tuning_space.SEARCH_SPACE` (see ``search_space``).
     objectives : names from :data:`~paper_repro.studies.tuning_space.OBJECTIVES` (all
         minimised).
-    scenes : number of training scenes (4; 2 with ``quick``), chosen by
+    scenes : number of training scenes (12; 2 with ``quick``), chosen by
         :func:`training_scenes`; or ``seeds`` gives them explicitly.
-    seeds : the training scenes' seeds, instead of ``scenes``.
+    hard : how many of them are scenes where the printed set-up stalls or chatters (4; 0 with
+        ``quick``); at most ``scenes``.
+    seeds : the training scenes' seeds, instead of ``scenes`` (then every one must be
+        completed).
     sampler : ``"tpe"`` (multi-objective TPE, the default) or ``"nsga2"``, both with the
         constraints of :data:`~paper_repro.studies.tuning_space.CONSTRAINTS`.
     seed : seed of the sampler (offset by the number of trials already stored, so a resumed
@@ -221,6 +147,7 @@ class TuningSettings:
     space: Mapping | Sequence[str] | None = None
     objectives: Sequence[str] = DEFAULT_OBJECTIVES
     scenes: int | None = None
+    hard: int | None = None
     seeds: Sequence[int] | None = None
     sampler: str = "tpe"
     seed: int = 0
@@ -261,7 +188,7 @@ def tune(settings: TuningSettings | None = None, *, workers: int | None = None,
                                                st.runs_dir)
     base = st.base or Config()
     spec = check_tune_args(trials, quick, workers, scheduler, storage, space, objectives,
-                            scenes, seeds, sampler, max_steps, base)
+                            scenes, seeds, sampler, max_steps, base, st.hard)
     out = Path(out) if out is not None else tuning_dir(quick)
     out.mkdir(parents=True, exist_ok=True)
     storage = storage or f"sqlite:///{out / 'tuning.db'}"
@@ -275,16 +202,22 @@ def tune(settings: TuningSettings | None = None, *, workers: int | None = None,
     existing = _load_existing(study_name, storage, log)
     with tuning_client(workers, scheduler, client, log) as cluster_client:
         if existing is None:
-            train = tuple(seeds) if seeds is not None else training_scenes(
-                spec["scenes"], max_steps=max_steps, base=base, client=cluster_client,
-                runs_dir=runs_dir, require_completion=not quick, log=log)
+            if seeds is not None:
+                train, must = tuple(seeds), tuple(seeds)
+            else:
+                train, must = training_scenes(
+                    spec["scenes"], spec["hard"], max_steps=max_steps, base=base,
+                    client=cluster_client, runs_dir=runs_dir, require_completion=not quick,
+                    log=log)
             _check_disjoint(train)
         else:
             train = tuple(existing.user_attrs.get("seeds", ()))
+            must = tuple(existing.user_attrs.get("must_complete", train))
         stored = {"objectives": list(objectives), "seeds": list(train),
+                  "must_complete": list(must),
                   "space": {n: [r.low, r.high, r.step] for n, r in space.items()},
                   "max_steps": max_steps, "require_completion": not quick,
-                  "base": json.loads(json.dumps(base.to_dict(), default=str))}
+                  "base": json.loads(json.dumps(base.key_dict(), default=str))}
         n_done = 0 if existing is None else len(finished_trials(existing))
         study = optuna.create_study(
             study_name=study_name, storage=storage, directions=directions,
@@ -322,7 +255,7 @@ def tune(settings: TuningSettings | None = None, *, workers: int | None = None,
                 workers=0 if cluster_client is None else None, runs_dir=runs_dir,
                 progress=False, log=lambda line: None).table
             values, constraints = evaluate_table(table, objectives, not quick,
-                                                 max_steps * base.nmpc.ts)
+                                                 max_steps * base.nmpc.ts, must)
             trial.set_user_attr("constraints", list(constraints))
             if hasattr(trial, "set_constraint"):  # Optuna >= 5: constraints by name
                 for name, c in zip(CONSTRAINTS, constraints):
@@ -384,41 +317,6 @@ def _ask_and_tell(study, objective, n_trials: int, n_jobs: int, callbacks) -> No
                     callback(study, frozen)
 
 
-def training_scenes(n: int, candidates: Sequence[int] = TRAIN_CANDIDATES,
-                    max_steps: int = PASSAGE_STEPS, base: Config | None = None, client=None,
-                    runs_dir=None, require_completion: bool = True,
-                    log: Callable[[str], None] = print) -> tuple[int, ...]:
-    """The first ``n`` seeds of ``candidates`` on which ``base`` (printed) completes the passage
-    with clearance ≥ :data:`MIN_CLEARANCE` and no collision.
-
-    The candidates are flown in batches of ``n`` through the run cache (the Monte Carlo study's
-    printed passages are the same runs). ``require_completion=False`` (quick runs) accepts
-    any run that did not stall. Raises ``ValueError`` if fewer than ``n`` qualify.
-    """
-    base = base or Config()
-    runs_dir = Path(runs_dir) if runs_dir is not None else paths.results_dir() / "runs"
-    chosen: list[int] = []
-    pool = list(candidates)
-    while len(chosen) < n and pool:
-        batch, pool = pool[:n], pool[n:]
-        table = run_study(trial_study(printed_params(base), batch, max_steps, base,
-                                      "training-screen"),
-                          out=runs_dir.parent / "tuning" / "training-screen",
-                          client=client, workers=0 if client is None else None,
-                          runs_dir=runs_dir, progress=False, log=lambda line: None).table
-        for i in range(len(table)):
-            _, con = evaluate_table(table.iloc[[i]], ("hf_energy_fraction",),
-                                    require_completion)
-            if max(con) <= 0 and len(chosen) < n:
-                chosen.append(int(table["scene_seed"].iloc[i]))
-        log(f"tune: screened seeds {batch}: training scenes so far {chosen}")
-    if len(chosen) < n:
-        raise ValueError(f"scenes: only {len(chosen)} of the candidate seeds "
-                         f"{list(candidates)[:3]}... complete under the printed set-up, "
-                         f"{n} were asked")
-    return tuple(chosen)
-
-
 # --- helpers --------------------------------------------------------------------------------
 
 def _shown_storage(storage: str, out: Path) -> str:
@@ -429,7 +327,7 @@ def _shown_storage(storage: str, out: Path) -> str:
 
 
 def check_tune_args(trials, quick, workers, scheduler, storage, space, objectives, scenes,
-                     seeds, sampler, max_steps, base) -> dict:
+                     seeds, sampler, max_steps, base, hard=None) -> dict:
     if not (isinstance(trials, int) and not isinstance(trials, bool) and trials >= 1):
         raise ValueError(f"trials must be an integer >= 1, got {trials!r}")
     objectives = check_objectives(objectives)
@@ -446,6 +344,9 @@ def check_tune_args(trials, quick, workers, scheduler, storage, space, objective
     n = scenes if scenes is not None else (QUICK["scenes"] if quick else DEFAULT_SCENES)
     if not (isinstance(n, int) and n >= 1):
         raise ValueError(f"scenes must be an integer >= 1, got {n!r}")
+    k = hard if hard is not None else (QUICK["hard"] if quick else min(DEFAULT_HARD, n))
+    if not (isinstance(k, int) and not isinstance(k, bool) and 0 <= k <= n):
+        raise ValueError(f"hard must be an integer in [0, scenes = {n}], got {k!r}")
     if seeds is not None:
         if not seeds or not all(isinstance(s, (int, np.integer)) and s >= 0 for s in seeds):
             raise ValueError(f"seeds must be a non-empty sequence of integers >= 0, got "
@@ -455,7 +356,8 @@ def check_tune_args(trials, quick, workers, scheduler, storage, space, objective
                                                      else PASSAGE_STEPS)
     if not (isinstance(steps, int) and steps >= 1):
         raise ValueError(f"max_steps must be an integer >= 1, got {steps!r}")
-    return {"objectives": objectives, "space": space, "scenes": n, "max_steps": steps}
+    return {"objectives": objectives, "space": space, "scenes": n, "hard": k,
+            "max_steps": steps}
 
 
 def _check_storage(url: str) -> None:
@@ -469,13 +371,6 @@ def _check_storage(url: str) -> None:
                          f"{url!r}") from None
 
 
-def _check_disjoint(seeds) -> None:
-    overlap = sorted(set(int(s) for s in seeds) & set(HELDOUT_SEEDS))
-    if overlap:
-        raise ValueError(f"seeds: training scenes must not be held-out scenes "
-                         f"({HELDOUT_SEEDS[0]}-{HELDOUT_SEEDS[-1]}), got {overlap}")
-
-
 def _check_stored(study, stored: dict) -> None:
     """A resumed study must be the same study: same objectives, space, step limit and base (a
     base stored before a setting moved, :data:`~paper_repro.config.MOVED`, is read in the
@@ -485,7 +380,7 @@ def _check_stored(study, stored: dict) -> None:
             continue
         was = study.user_attrs[k]
         if k == "base":
-            was = Config.from_dict(was).to_dict()
+            was = Config.from_dict(was).key_dict()
         if json.loads(json.dumps(was, default=str)) != json.loads(json.dumps(stored[k])):
             raise ValueError(f"{k}: the stored study {study.study_name!r} was run with "
                              f"{study.user_attrs[k]!r}, not {stored[k]!r}; use another "

@@ -21,10 +21,12 @@ from paper_repro.studies.catalogue import (
     Study,
 )
 from paper_repro.studies.engine import run_study
-from paper_repro.studies.tuning import HELDOUT_SEEDS, TuningResult, tuning_spec, write_json
+from paper_repro.studies.tuning import TuningResult, write_json
+from paper_repro.studies.tuning_scenes import HELDOUT_SEEDS, tuning_spec
 from paper_repro.studies.tuning_space import (
     CONSTRAINTS,
     DEFAULT_OBJECTIVES,
+    MIN_CLEARANCE,
     TUNABLE,
     apply_params,
     finished_trials,
@@ -55,7 +57,8 @@ def tuning_meta(directory=None, quick: bool = False) -> dict:
 
 def trials_frame(study) -> object:
     """One row per finished trial: ``number``, the parameters, the objectives (named), the
-    constraints (named, :data:`CONSTRAINTS`), ``feasible``, ``pareto`` (on the feasible front)
+    constraints (named, :data:`CONSTRAINTS`), ``min_clearance_m`` (the smallest over the
+    training scenes), ``feasible``, ``pareto`` (on the feasible front)
     and ``printed`` (the printed set-up).
 
     Feasibility is read from the constraints the trial stored, never from its values, so an
@@ -75,6 +78,8 @@ def trials_frame(study) -> object:
                **dict(zip(objectives, t.values)),
                **dict(zip(CONSTRAINTS, con if con is not None else [np.inf] * 3)),
                "flown": t.user_attrs.get("flown", 0)}
+        # The smallest clearance over the training scenes, m (from the shortfall below it).
+        row["min_clearance_m"] = MIN_CLEARANCE - row["clearance_shortfall_m"]
         row["feasible"] = con is not None and all(c <= 0 for c in con) and all(
             math.isfinite(v) for v in t.values)
         row["printed"] = all(math.isclose(t.params.get(n, np.nan), printed[n],
@@ -94,10 +99,17 @@ def trials_frame(study) -> object:
 
 def best_setups(frame, objectives: Sequence[str] = DEFAULT_OBJECTIVES,
                 base: Config | None = None) -> dict[str, dict]:
-    """The three held-out set-ups: ``printed`` (``base``'s values), ``best_chattering`` and
-    ``best_time`` (the Pareto points best on the first and on the last objective; ties broken
-    by the other objective, then by trial number).
+    """The three held-out set-ups of :data:`~paper_repro.studies.tuning_space.SETUPS`:
 
+    * ``printed``: ``base``'s values;
+    * ``best_chattering``: the Pareto point best on the first objective (ties broken by the
+      last objective, then by trial number);
+    * ``safest``: among the Pareto points that chatter less than the printed set-up (the
+      whole front when none does, or when the study holds no printed trial), the one with
+      the largest clearance over the training scenes (ties broken by chattering, then by
+      trial number).
+
+    The two tuned set-ups may be the same trial; their flights are then shared.
     Raises ``ValueError`` when no trial is feasible: there is no front to pick from.
     """
     front = frame[frame["pareto"]]
@@ -105,8 +117,11 @@ def best_setups(frame, objectives: Sequence[str] = DEFAULT_OBJECTIVES,
         raise ValueError("no feasible trial: the study has no Pareto front to pick from")
     names = [c for c in frame.columns if c in TUNABLE]
     chat, speed = objectives[0], objectives[-1]
+    printed = frame[frame["printed"]]
+    calm = front if printed.empty else front[front[chat] < float(printed[chat].iloc[0])]
+    calm = front if calm.empty else calm
     pick = {"best_chattering": front.sort_values([chat, speed, "number"]).iloc[0],
-            "best_time": front.sort_values([speed, chat, "number"]).iloc[0]}
+            "safest": calm.sort_values(["clearance_shortfall_m", chat, "number"]).iloc[0]}
     out = {"printed": printed_params(base, names)}
     for k, row in pick.items():
         # Rounded as the trial's flights were (:func:`suggest`): the same configuration.
@@ -143,9 +158,9 @@ def printed_position(frame, objectives: Sequence[str] = DEFAULT_OBJECTIVES) -> d
 
 
 def importances(study, objectives: Sequence[str] | None = None, seed: int = 0):
-    """Optuna's ``get_param_importances`` (:func:`_evaluator`) for each objective over the feasible
-    trials, and for the constraint violation (sum of the positive constraints) over all: a
-    DataFrame with one row per parameter and one column per target."""
+    """Optuna's ``get_param_importances`` (PED-ANOVA, :func:`_evaluator`) for each objective
+    over the feasible trials, and for the constraint violation (sum of the positive
+    constraints) over all: a DataFrame with one row per parameter and one column per target."""
     import optuna
     import pandas as pd
 
@@ -257,30 +272,71 @@ def heldout_summary(table, n_resamples: int = 5000, seed: int = 0):
     return pd.concat([rates, med, *pairs], ignore_index=True)
 
 
+def verdicts(table) -> dict[str, dict]:
+    """Whether each tuned set-up of a held-out table may be offered as a preset:
+    ``{setup: {"offered": bool, "why": str}}``.
+
+    A set-up is offered only when it has **no** held-out collision and completes at least as
+    many held-out passages as the printed set-up (the same scenes, so the same count is the
+    same rate). The printed set-up is the reference and always offered.
+    """
+    ok = table["status"] == "ok"
+    out = {}
+    counts = {}
+    for setup, g in table.groupby("setup", sort=False):
+        good = ok.loc[g.index]
+        counts[setup] = (int((good & g["collision"].fillna(False).astype(bool)).sum()),
+                         int((good & g["completed"].fillna(False).astype(bool)).sum()), len(g))
+    ref = counts.get("printed")
+    for setup, (collided, done, n) in counts.items():
+        if setup == "printed":
+            out[setup] = {"offered": True, "why": f"the reference: completed {done}/{n}, "
+                          f"{collided} collisions"}
+            continue
+        reasons = []
+        if collided:
+            reasons.append(f"{collided}/{n} held-out collisions")
+        if ref is not None and done < ref[1]:
+            reasons.append(f"completed {done}/{n}, fewer than the printed set-up's {ref[1]}/{n}")
+        out[setup] = {"offered": not reasons,
+                      "why": "; ".join(reasons) if reasons else
+                      f"0/{n} held-out collisions, completed {done}/{n} (printed: "
+                      f"{ref[1] if ref else '?'}/{n})"}
+    return out
+
+
 def presets_from_setups(setups: Mapping[str, Mapping[str, float]],
-                        base: Config | None = None) -> dict:
-    """``{name: {"distance": {...}, "barrier": {...}}}``: the set-ups as configuration
-    overrides, ready for ``dataclasses.replace`` (:func:`preset_config`)."""
+                        base: Config | None = None,
+                        verdict: Mapping[str, Mapping] | None = None) -> dict:
+    """``{name: {"distance": {...}, "barrier": {...}, "offered": bool, "why": str}}``: the
+    set-ups as configuration overrides, ready for ``dataclasses.replace``
+    (:func:`preset_config`), with the held-out :func:`verdicts` when given."""
     base = base or Config()
     out = {}
     for name, params in setups.items():
-        cfg = apply_params(base, {n: v for n, v in params.items() if n in TUNABLE})
-        out[name] = {"distance": dataclasses.asdict(cfg.distance),
-                     "barrier": dataclasses.asdict(cfg.barrier)}
+        stored = apply_params(base, {n: v for n, v in params.items()
+                                     if n in TUNABLE}).key_dict()  # as a run's key sees it
+        out[name] = {"distance": stored["distance"], "barrier": stored["barrier"]}
         if "trial" in params:
             out[name]["trial"] = int(params["trial"])
+        if verdict is not None and name in verdict:
+            out[name].update(verdict[name])
     return out
 
 
 def preset_config(name: str, directory=None, base: Config | None = None) -> Config:
-    """The configuration of a tuned preset (``best_chattering``, ``best_time``, ``printed``)
-    saved in ``<directory>/presets.json`` (default ``figures/tuning``)."""
+    """The configuration of a tuned preset saved in ``<directory>/presets.json`` (default
+    ``figures/tuning``): ``printed``, or a tuned set-up that the held-out evaluation offered
+    (:func:`verdicts`). A set-up it did not offer raises ``ValueError`` saying why."""
     d = Path(directory) if directory is not None else tuning_dir()
     presets = json.loads((d / "presets.json").read_text())
     if name not in presets:
         raise ValueError(f"name must be one of {sorted(presets)}, got {name!r}")
-    base = base or Config()
     p = presets[name]
+    if not p.get("offered", True):
+        raise ValueError(f"name: the tuned set-up {name!r} is not offered as a preset "
+                         f"({p.get('why', 'it failed the held-out evaluation')})")
+    base = base or Config()
     return dataclasses.replace(base, distance=dataclasses.replace(base.distance,
                                                                   **p["distance"]),
                                barrier=dataclasses.replace(base.barrier, **p["barrier"]))
@@ -289,8 +345,8 @@ def preset_config(name: str, directory=None, base: Config | None = None) -> Conf
 def run_heldout(res: TuningResult, n: int = len(HELDOUT_SEEDS), client=None, runs_dir=None,
                 log: Callable[[str], None] = print):
     """The held-out step of ``tune``: pick the set-ups from the front, fly them on the first
-    ``n`` held-out seeds, write ``heldout_table.csv`` and ``presets.json`` into the tuning
-    folder. Returns the table."""
+    ``n`` held-out seeds, write ``heldout_table.csv`` and ``presets.json`` (with each set-up's
+    :func:`verdicts`) into the tuning folder. Returns the table."""
     meta = res.study.user_attrs
     base = Config.from_dict(meta["base"])
     setups = best_setups(trials_frame(res.study), meta["objectives"], base)
@@ -306,22 +362,20 @@ def run_heldout(res: TuningResult, n: int = len(HELDOUT_SEEDS), client=None, run
     flight.to_csv(res.directory / "heldout_table.csv", index=False, float_format="%.6g")
     timings.insert(0, "name", table["name"])
     timings.to_csv(res.directory / "heldout_timings.csv", index=False, float_format="%.4g")
-    write_json(res.directory / "presets.json", presets_from_setups(setups, base))
+    write_json(res.directory / "presets.json",
+               presets_from_setups(setups, base, verdicts(flight)))
     return table
 
 
 def _evaluator(seed: int):
-    """fANOVA when scikit-learn is installed (Optuna's default), else PED-ANOVA, which Optuna
-    ships without extra dependencies."""
+    """PED-ANOVA on the best quarter of the trials (not Optuna's default tenth: a few dozen
+    trials leave too few in a tenth to compare distributions). It ships with Optuna and needs no
+    other library, so the importances are the same on every machine; fANOVA, Optuna's default,
+    needs scikit-learn. ``seed`` is kept for an evaluator that samples."""
     import optuna
 
-    try:
-        import sklearn  # noqa: F401
-    except ImportError:
-        # The top quarter of the trials (not the default tenth): a few dozen trials leave
-        # too few in a tenth to compare distributions.
-        return optuna.importance.PedAnovaImportanceEvaluator(target_quantile=0.25)
-    return optuna.importance.FanovaImportanceEvaluator(seed=seed)
+    del seed
+    return optuna.importance.PedAnovaImportanceEvaluator(target_quantile=0.25)
 
 
 def _non_dominated(values: np.ndarray) -> np.ndarray:
