@@ -131,9 +131,11 @@ def rekey(results_dir=None) -> dict:
         for spec_steps in dict.fromkeys((steps, default_steps)):
             candidate = json.loads(json.dumps(saved))
             candidate["simulation"]["max_steps"] = spec_steps
-            if _hash({"config": candidate, "max_steps": int(steps), "scene": scene,
-                      "golden": golden})[:HASH_LENGTH] == key:
-                written = candidate
+            # keyed as saved (code before ADDED), or as Config.key_dict keys it (today's)
+            for keyed in (candidate, _without_added(candidate)):
+                if _hash({"config": keyed, "max_steps": int(steps), "scene": scene,
+                          "golden": golden})[:HASH_LENGTH] == key:
+                    written = candidate
         if written is None:
             counts["unproven"] += 1
             continue
@@ -155,6 +157,18 @@ def rekey(results_dir=None) -> dict:
             os.replace(d, target)
         counts["moved"] += 1
     return counts
+
+
+def _without_added(config: dict) -> dict:
+    """A stored configuration without the settings of :data:`~paper_repro.config.ADDED` that
+    hold their neutral value, as :meth:`Config.key_dict` leaves it."""
+    from paper_repro.config import ADDED
+
+    out = json.loads(json.dumps(config))
+    for (part, name), neutral in ADDED.items():
+        if isinstance(out.get(part), dict) and out[part].get(name, None) == neutral:
+            del out[part][name]
+    return out
 
 
 def _hash(payload: dict) -> str:

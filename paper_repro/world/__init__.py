@@ -10,10 +10,12 @@ the LiDAR sees of them.
 ``planar``         a planar scene (p = 2) for a ground robot
 ``lidar``          :class:`Lidar`, the virtual LiDAR (optionally imperfect)
 ``tracking``       :class:`RegionTracker`, a Kalman filter of the regions' velocities
+``local_map``      :class:`VoxelMap`, a bounded log-odds map of the scans (an option)
 =================  ==================================================================
 """
 
 from paper_repro.world.lidar import Lidar
+from paper_repro.world.local_map import VoxelMap
 from paper_repro.world.motion import Motion
 from paper_repro.world.planar import planar_scene
 from paper_repro.world.random_scenes import (
@@ -78,6 +80,7 @@ __all__ = [
     "shape_from_dict",
     "shape_to_dict",
     "Union",
+    "VoxelMap",
     "WORKSPACE_LOWER",
     "WORKSPACE_UPPER",
 ]

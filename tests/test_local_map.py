@@ -1,0 +1,143 @@
+"""The local voxel map: what enters it, what survives in it, what leaves it, and its size."""
+
+import math
+
+import numpy as np
+import pytest
+
+from paper_repro.config import SensorParams
+from paper_repro.world.lidar import Lidar
+from paper_repro.world.local_map import VoxelMap
+from paper_repro.world.shapes import Box, halton_cloud
+
+EMPTY = [np.zeros((0, 3))]
+
+
+def _wall(seed=0):
+    """A 4 × 0.5 × 4 m wall 1.5 m in front of the origin, at 3 points/m³."""
+    return halton_cloud(Box((1.75, 0.0, 0.0), (0.5, 4.0, 4.0)), 3.0, seed)
+
+
+def test_one_return_is_not_enough_and_repeated_hits_are():
+    m = VoxelMap()
+    point = [np.array([[1.0, 0.2, 0.3]])]
+    needed = math.ceil(m.occupied / m.hit)
+    for k in range(needed - 1):
+        m.update(point, np.zeros(3), 0.01 * k)
+        assert not m.occupied_mask.any()
+    m.update(point, np.zeros(3), 0.1)
+    assert m.occupied_mask.sum() == 1
+    np.testing.assert_allclose(m.regions(np.zeros(3), 3.0, 1)[0], point[0])
+
+
+def test_spurious_returns_never_become_occupied():
+    # Far from the only region, every return is spurious: two per scan, uniform in the sphere.
+    far = [np.array([[40.0, 40.0, 10.0]])]
+    lidar = Lidar(far, noise=SensorParams(spurious_rate=2.0, seed=3))
+    m, position = VoxelMap(), np.array([0.0, 0.0, 5.0])
+    returns = 0
+    for k in range(2000):
+        scan = lidar.scan(position)
+        returns += len(scan[0])
+        m.update(scan, position, 0.01 * k)
+        assert not m.occupied_mask.any(), f"a spurious voxel became occupied at scan {k}"
+    assert returns > 3000  # the sensor did invent returns
+
+
+def test_a_confirmed_voxel_survives_dropouts_and_is_cleared_once_seen_empty():
+    m = VoxelMap()
+    point = [np.array([[1.0, 0.2, 0.3]])]
+    for k in range(20):
+        m.update(point, np.zeros(3), 0.01 * k)
+    survives = math.floor((m.clamp[1] - m.occupied) / -m.miss)
+    for k in range(survives):  # the return is dropped this many scans in a row
+        m.update(EMPTY, np.zeros(3), 1.0 + 0.01 * k)
+        assert m.occupied_mask.sum() == 1
+    m.update(EMPTY, np.zeros(3), 2.0)
+    assert not m.occupied_mask.any()
+
+
+def test_a_noisy_lidar_with_dropouts_keeps_the_wall_and_averages_its_noise():
+    wall = _wall()
+    noise = SensorParams(range_noise=0.05, dropout=0.2, spurious_rate=2.0, seed=1)
+    lidar, m = Lidar([wall], noise=noise), VoxelMap()
+    position = np.zeros(3)
+    in_view = wall[np.linalg.norm(wall - position, axis=1) <= 3.0 - math.sqrt(3) * 0.5]
+    raw_error, kept = [], []
+    for k in range(300):
+        scan = lidar.scan(position)
+        m.update(scan, position, 0.01 * k)
+        if k >= 50:
+            raw = scan[0]
+            raw_error.append(np.min(np.linalg.norm(raw[:, None] - wall[None], axis=2), 1))
+            near = m.regions(position, 3.0, 1)[0]
+            # every point that lies fully in view stays in the map through the dropouts
+            kept.append(np.min(np.linalg.norm(in_view[:, None] - near[None], axis=2), 1))
+    assert np.max(kept) < 0.5 * m.voxel
+    mapped = m.regions(position, 3.0, 1)[0]
+    map_error = np.min(np.linalg.norm(mapped[:, None] - wall[None], axis=2), 1)
+    # a voxel's mean of returns sits closer to the true point than one noisy return does
+    assert np.median(map_error) < 0.5 * np.median(np.concatenate(raw_error))
+
+
+def test_points_behind_the_vehicle_persist_and_forgetting_is_by_distance_or_age():
+    wall = _wall()
+    m = VoxelMap(keep_radius=10.0, max_age=5.0)
+    lidar = Lidar([wall])
+    for k in range(10):
+        m.update(lidar.scan(np.zeros(3)), np.zeros(3), 0.01 * k)
+    n = int(m.occupied_mask.sum())
+    assert n > 0
+    away = np.array([-6.0, 0.0, 0.0])  # the wall is out of range, 7.5 m behind
+    m.update(lidar.scan(away), away, 1.0)
+    assert int(m.occupied_mask.sum()) == n
+    m.update(lidar.scan(away), away, 6.0)  # unseen for more than max_age
+    assert len(m) == 0
+    m2 = VoxelMap(keep_radius=5.0)
+    for k in range(10):
+        m2.update(lidar.scan(np.zeros(3)), np.zeros(3), 0.01 * k)
+    m2.update(lidar.scan(away), away, 1.0)  # beyond keep_radius
+    assert len(m2) == 0
+
+
+def test_memory_stays_bounded_on_a_long_flight():
+    rng = np.random.default_rng(0)
+    clouds = [halton_cloud(Box((x, 0.0, 0.0), (1.0, 6.0, 6.0)), 3.0, i)
+              for i, x in enumerate(np.arange(2.0, 200.0, 4.0))]
+    lidar = Lidar(clouds, noise=SensorParams(spurious_rate=2.0, seed=2))
+    m = VoxelMap(max_voxels=400, keep_radius=6.0)
+    peak = 0
+    for k, x in enumerate(np.arange(0.0, 200.0, 0.05)):
+        p = np.array([x, rng.normal(0, 0.1), 0.0])
+        m.update(lidar.scan(p), p, 0.01 * k)
+        peak = max(peak, len(m))
+        assert np.all(np.linalg.norm(m._centre(m.keys) - p, axis=1) <= 6.0)
+    assert peak <= 400
+
+
+def test_excluded_regions_stay_out_and_regions_keep_their_labels():
+    a, b = np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]])
+    m = VoxelMap()
+    for k in range(5):
+        m.update([a, b], np.zeros(3), 0.01 * k, exclude=[False, True])
+    got = m.regions(np.zeros(3), 3.0, 2)
+    np.testing.assert_allclose(got[0], a)
+    assert got[1].shape == (0, 3)
+
+
+@pytest.mark.parametrize("kwargs,word", [
+    ({"voxel": 0.0}, "voxel"), ({"miss": 0.1}, "miss"), ({"occupied": 0.5}, "occupied"),
+    ({"clamp_high": 1.0}, "clamp_high"), ({"keep_radius": 2.0}, "keep_radius"),
+    ({"max_voxels": 0}, "max_voxels"), ({"max_age": 0.0}, "max_age"),
+    ({"mean_window": 0}, "mean_window")])
+def test_bad_parameters_are_named(kwargs, word):
+    with pytest.raises(ValueError, match=word):
+        VoxelMap(**kwargs)
+
+
+def test_bad_update_arguments_are_named():
+    m = VoxelMap()
+    with pytest.raises(ValueError, match="position"):
+        m.update(EMPTY, [0.0, 0.0], 0.0)
+    with pytest.raises(ValueError, match="exclude"):
+        m.update(EMPTY, np.zeros(3), 0.0, exclude=[True, False])
