@@ -111,7 +111,7 @@ def test_memory_stays_bounded_on_a_long_flight():
         p = np.array([x, rng.normal(0, 0.1), 0.0])
         m.update(lidar.scan(p), p, 0.01 * k)
         peak = max(peak, len(m))
-        assert np.all(np.linalg.norm(m._centre(m.keys) - p, axis=1) <= 6.0)
+        assert np.all(np.linalg.norm(m.centre - p, axis=1) <= 6.0)
     assert peak <= 400
 
 

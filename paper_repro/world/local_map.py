@@ -102,6 +102,7 @@ class VoxelMap:
     def reset(self) -> None:
         """Forget every voxel."""
         self.keys = np.zeros(0, np.int64)         # packed voxel indices, sorted
+        self.centre = np.zeros((0, 3))            # voxel centres, m
         self.log_odds = np.zeros(0)
         self.point = np.zeros((0, 3))             # representative point, m
         self.count = np.zeros(0, np.int64)        # hits in the representative mean
@@ -132,20 +133,23 @@ class VoxelMap:
         hit_keys, first, inverse = np.unique(self._key(points), return_index=True,
                                              return_inverse=True)
         inverse = inverse.ravel()
+        at = np.searchsorted(self.keys, hit_keys)
+        known = at < len(self.keys)
+        known[known] = self.keys[at[known]] == hit_keys[known]
         # Misses: voxels already in the map, seen by this scan and without a return in it. An
         # occupied voxel is seen when all of it is in the sphere; one not (yet) occupied as
         # soon as any of it is, so that stray returns at the sphere's edge decay too.
-        reach = np.linalg.norm(self._centre(self.keys) - p, axis=1)
+        reach = np.linalg.norm(self.centre - p, axis=1)
         half_diagonal = math.sqrt(3.0) * self.voxel / 2
-        seen = np.where(self.log_odds >= self.occupied, reach <= self.sensing_range - half_diagonal,
-                        reach <= self.sensing_range + half_diagonal)
-        missed = seen & ~np.isin(self.keys, hit_keys)
+        missed = np.where(self.log_odds >= self.occupied,
+                          reach <= self.sensing_range - half_diagonal,
+                          reach <= self.sensing_range + half_diagonal)
+        missed[at[known]] = False
         self.log_odds[missed] = np.maximum(self.log_odds[missed] + self.miss, self.clamp[0])
         self.seen[missed] = t
         # Hits: new voxels enter at the prior 0, then every hit voxel gains ``hit`` once.
-        new = ~np.isin(hit_keys, self.keys)
-        if new.any():
-            self._insert(hit_keys[new])
+        if not known.all():
+            reach = self._insert(hit_keys[~known], reach, p)
         where = np.searchsorted(self.keys, hit_keys)
         self.log_odds[where] = np.minimum(self.log_odds[where] + self.hit, self.clamp[1])
         self.seen[where] = t
@@ -156,30 +160,35 @@ class VoxelMap:
         n = np.minimum(self.count[where], self.mean_window - 1)
         self.point[where] = (self.point[where] * n[:, None] + sums) / (n + k)[:, None]
         self.count[where] = np.minimum(n + k, self.mean_window)
-        self._forget(p, t)
+        self._forget(reach, t)
 
-    def _forget(self, p: np.ndarray, t: float) -> None:
-        """Drop voxels that are too old, too far, back at the floor of a free voxel, or
-        beyond the budget (least recently seen first)."""
-        keep = ((t - self.seen <= self.max_age)
-                & (np.linalg.norm(self._centre(self.keys) - p, axis=1) <= self.keep_radius)
+    _FIELDS = ("keys", "centre", "log_odds", "point", "count", "label", "seen")
+
+    def _forget(self, reach: np.ndarray, t: float) -> None:
+        """Drop voxels that are too old, too far (``reach``: each one's distance from the
+        vehicle, m), back at the floor of a free voxel, or beyond the budget (least recently
+        seen first)."""
+        keep = ((t - self.seen <= self.max_age) & (reach <= self.keep_radius)
                 & (self.log_odds > self.clamp[0]))
         if keep.sum() > self.max_voxels:
             order = np.argsort(-np.where(keep, self.seen, -np.inf), kind="stable")
             keep = np.zeros_like(keep)
             keep[order[:self.max_voxels]] = True
         if not keep.all():
-            for name in ("keys", "log_odds", "point", "count", "label", "seen"):
+            for name in self._FIELDS:
                 setattr(self, name, getattr(self, name)[keep])
 
-    def _insert(self, keys: np.ndarray) -> None:
-        at = np.searchsorted(self.keys, keys)
-        self.keys = np.insert(self.keys, at, keys)
-        self.log_odds = np.insert(self.log_odds, at, 0.0)
-        self.point = np.insert(self.point, at, 0.0, axis=0)
-        self.count = np.insert(self.count, at, 0)
-        self.label = np.insert(self.label, at, 0)
-        self.seen = np.insert(self.seen, at, 0.0)
+    def _insert(self, keys: np.ndarray, reach: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Add voxels at the prior (keys kept sorted); returns ``reach`` for the new order."""
+        centre = self._centre(keys)
+        order = np.argsort(np.concatenate([self.keys, keys]), kind="stable")
+        m = len(keys)
+        added = {"keys": keys, "centre": centre, "log_odds": np.zeros(m),
+                 "point": np.zeros((m, 3)), "count": np.zeros(m, np.int64),
+                 "label": np.zeros(m, np.int64), "seen": np.zeros(m)}
+        for name in self._FIELDS:
+            setattr(self, name, np.concatenate([getattr(self, name), added[name]])[order])
+        return np.concatenate([reach, np.linalg.norm(centre - p, axis=1)])[order]
 
     # --- the read-out ---------------------------------------------------------------------
 
