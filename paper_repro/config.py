@@ -422,6 +422,11 @@ class SensorParams:
         lies uniformly inside the sensing sphere and is attributed to the region whose cloud
         holds the point nearest to it.
     seed : seed of the sensor's noise generator, an integer >= 0.
+    map_voxel : m, *chosen* 0 (off: the controller reads the raw scan, as in the paper). With
+        a voxel side > 0, the scans build a :class:`~paper_repro.world.local_map.VoxelMap`
+        and the controller reads the map's points within r_s instead: what was seen
+        persists, and noise averages down. Regions predicted to move (speed above
+        ``MAPPED_SPEED``) stay out of the map and are read from the raw scan. In (0, r_s).
     """
 
     range: float = 3.0
@@ -429,6 +434,7 @@ class SensorParams:
     dropout: float = 0.0
     spurious_rate: float = 0.0
     seed: int = 0
+    map_voxel: float = 0.0
 
     def __post_init__(self):
         require_positive("range", self.range)
@@ -438,6 +444,9 @@ class SensorParams:
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
         require_range("dropout", self.dropout, 0.0, 1.0)
         require_int("seed", self.seed, 0)
+        if not (is_number(self.map_voxel) and 0 <= self.map_voxel < self.range):
+            raise ValueError(f"map_voxel must be 0 (off) or a voxel side in (0, range = "
+                             f"{self.range}) m, got {self.map_voxel!r}")
 
     @property
     def perfect(self) -> bool:
@@ -460,6 +469,7 @@ moving regions left the mission (``simulation``)."""
 
 ADDED = {
     ("barrier", "equilibrium_lookahead"): 0.0,
+    ("sensor", "map_voxel"): 0.0,
 }
 """Settings added after the committed evidence was flown, (part, name) → the value that flies
 as before (the golden flights prove it). A run whose setting has that value is keyed as it was

@@ -26,6 +26,7 @@ from paper_repro.solvers.factory import make_controller
 from paper_repro.vehicles.base import VehicleModel
 from paper_repro.vehicles.quadrotor import quadrotor_model
 from paper_repro.world.lidar import Lidar
+from paper_repro.world.local_map import MAPPED_SPEED, VoxelMap
 from paper_repro.world.scenarios import make_scene
 from paper_repro.world.scene import Scene
 
@@ -119,6 +120,7 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     output = _output_map(model)
     truth = _TrueClearance(scene)
     predict = _predictor(cfg.nmpc.prediction, lidar, ts)
+    read_map = _map_reader(cfg, scene)
     ctl = controller or make_controller(cfg, model)
     ctl.reset()
     counters = _SolverCounters(ctl)
@@ -147,9 +149,11 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
         if faults is not None and faults.scan is not None:
             visible = faults.scan(k, visible)
         visible, dropped = _finite_points(visible)
-        velocities = predict(visible, t)
+        velocities = predict(visible, t)  # the tracker reads the raw scan
         if velocities is not None:
             log.region_velocities[k] = velocities  # what the controller is handed
+        if read_map is not None:
+            visible = read_map(visible, y, t, velocities)
         sol = _solve(ctl, measured, target, visible, plan, errors, velocities, model)
         if sol.success:
             plan, last_good = sol, measured
@@ -202,6 +206,30 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     meta.update(counters.since())
     return SimulationResult(targets=targets, reached=reached, outcome=outcome, scene=scene,
                             config=cfg, meta=meta, **arrays)
+
+
+def _map_reader(cfg: Config, scene: Scene):
+    """What the controller reads instead of the raw scan when ``sensor.map_voxel`` > 0: a
+    function (visible, y, t, velocities) -> visible that updates a
+    :class:`~paper_repro.world.local_map.VoxelMap` with the scan and returns its points within
+    r_s. A region predicted to move faster than ``MAPPED_SPEED`` stays out of the map and is
+    read from the scan. None when the map is off (the paper)."""
+    if cfg.sensor.map_voxel == 0:
+        return None
+    if scene.dim != 3:
+        raise ValueError(f"sensor.map_voxel needs a 3-D scene; {scene.name!r} is planar "
+                         f"(p = {scene.dim}): set map_voxel = 0")
+    local_map = VoxelMap(voxel=cfg.sensor.map_voxel, sensing_range=cfg.sensor.range)
+    n = len(scene.clouds)
+
+    def read(visible, y, t, velocities):
+        moving = ([False] * n if velocities is None
+                  else [float(np.linalg.norm(v)) > MAPPED_SPEED for v in velocities])
+        local_map.update(visible, y, t, exclude=moving)
+        mapped = local_map.regions(y, cfg.sensor.range, n)
+        return [visible[i] if moving[i] else mapped[i] for i in range(n)]
+
+    return read
 
 
 def _predictor(prediction: str, lidar: Lidar, ts: float):

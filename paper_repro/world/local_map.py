@@ -47,6 +47,10 @@ import numpy as np
 
 from paper_repro.validation import require_int, require_positive, require_time
 
+MAPPED_SPEED = 0.1
+"""m/s: the closed loop (``sensor.map_voxel``) keeps a region predicted to move faster than
+this out of the map, and hands the controller its raw scan."""
+
 _OFFSET = 1 << 20  # voxel indices are packed as three 21-bit fields (±1 M voxels per axis)
 
 
