@@ -188,7 +188,8 @@ def test_the_equilibrium_lookahead_is_checked_needs_a_prediction_and_keeps_every
     assert ("barrier", "equilibrium_lookahead") in ADDED
     for cfg in (Config(), dataclasses.replace(on, barrier=BarrierParams())):
         before = cfg.to_dict()
-        del before["barrier"]["equilibrium_lookahead"]  # the layout before the setting
+        for part, name in ADDED:  # the layout before the settings added since
+            del before[part][name]
         assert cfg.key_dict() == before and Config.from_dict(before) == cfg
         assert run_key(cfg, 100, "scene") == run_key(Config.from_dict(before), 100, "scene")
         from paper_repro.evidence.golden import golden_hash
