@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from paper_repro.config_history import moved_settings, without_added
 from paper_repro.validation import (
     is_number,
     require_choice,
@@ -454,45 +455,59 @@ class SensorParams:
         return self.range_noise == 0 and self.dropout == 0 and self.spurious_rate == 0
 
 
-MOVED = {
-    ("nmpc", "solver"): ("solver", "nlp_solver"),
-    ("nmpc", "sqp_iterations"): ("solver", "sqp_iterations"),
-    ("nmpc", "line_search"): ("solver", "line_search"),
-    ("nmpc", "qp_solver"): ("solver", "qp_solver"),
-    ("simulation", "lidar_range"): ("sensor", "range"),
-    ("simulation", "prediction"): ("nmpc", "prediction"),
-}
-"""Settings that moved between parts, (old part, old name) → (new part, new name): the
-solver's options left the problem's ``nmpc`` part, and the LiDAR's range and the prediction of
-moving regions left the mission (``simulation``)."""
+GUIDES = ("none", "grid")
+"""What hands the NMPC its set-point (``GuideParams.planner``)."""
 
 
-ADDED = {
-    ("barrier", "equilibrium_lookahead"): 0.0,
-    ("sensor", "map_voxel"): 0.0,
-}
-"""Settings added after the committed evidence was flown, (part, name) → the value that flies
-as before (the golden flights prove it). A run whose setting has that value is keyed as it was
-before the setting existed (:meth:`Config.key_dict`), so the committed tables and a cache of
-runs stay valid across the addition and nothing is flown again; any other value enters the key
-like every setting. A setting enters here only with the commit that adds it."""
+@dataclass(frozen=True)
+class GuideParams:
+    """The guide (:class:`paper_repro.world.guide.Guide`): a path on the local map's inflated
+    occupancy, whose look-ahead point becomes the NMPC's set-point y_t.
 
+    Attributes
+    ----------
+    planner : ``"none"`` (*paper*: the set-point is the mission's target) or ``"grid"``
+        (Dijkstra's algorithm on a 26-connected grid of the workspace; needs the local map,
+        ``sensor.map_voxel`` > 0, and a 3-D scene).
+    cell : m, *chosen* 1. Side of a grid cell.
+    inflation : m, *chosen* 2. A cell is blocked when a mapped point lies within this of its
+        centre: the printed barrier's safe distance √(2·d_min) = 1.41 m, and the half-cell a
+        path between cell centres may cut. With 1.5 m the path led through gaps the NMPC
+        cannot pass (under a wall, by the floor) and the vehicle stalled there.
+    lookahead : m, *chosen* 8. The look-ahead point is the farthest path cell within this that
+        the vehicle sees along a free segment.
+    check_period : s, *chosen* 0.1. How often the guide reads the map and moves the set-point
+        on (so y_t is constant for at least this long).
+    replan_period : s, *chosen* 1. The least time between two plans; a plan is made when a
+        newly mapped voxel blocks the path.
+    max_turn : degrees, *chosen* 3. The most the guide's pull turns per check (30°/s), so
+        that a new look-ahead point does not make the thrusts jump.
+    climb : *chosen* 2. What a metre up or down costs the path, in metres along the level:
+        the path keeps the flight's altitude unless a detour over or under is much shorter.
+    stuck_time : s, *chosen* 2.5. A vehicle that moved less than 5 cm over this long, far
+        from its goal, is stuck: the cells between it and its aim are avoided and the path is
+        planned again (before the closed loop calls the run stalled, after 5 s).
+    """
 
-def _moved_settings(data: dict) -> dict:
-    """``data`` (a :meth:`Config.to_dict`) with every setting of :data:`MOVED` in its new
-    place; a setting given in both places is refused."""
-    data = {part: dict(values) if isinstance(values, dict) else values
-            for part, values in data.items()}
-    for (old_part, old_name), (new_part, new_name) in MOVED.items():
-        old = data.get(old_part)
-        if not (isinstance(old, dict) and old_name in old):
-            continue
-        new = data.setdefault(new_part, {})
-        if new_name in new:
-            raise ValueError(f"config gives {old_part}.{old_name} (its former place) and "
-                             f"{new_part}.{new_name}: give only {new_part}.{new_name}")
-        new[new_name] = old.pop(old_name)
-    return data
+    planner: str = "none"
+    cell: float = 1.0
+    inflation: float = 2.0
+    lookahead: float = 8.0
+    check_period: float = 0.1
+    replan_period: float = 1.0
+    max_turn: float = 3.0
+    climb: float = 2.0
+    stuck_time: float = 2.5
+
+    def __post_init__(self):
+        require_choice("planner", self.planner, GUIDES)
+        for name in ("cell", "inflation", "check_period", "replan_period", "max_turn", "climb",
+                     "stuck_time"):
+            require_positive(name, getattr(self, name))
+        if not (is_number(self.lookahead) and math.isfinite(self.lookahead)
+                and self.lookahead >= self.cell):
+            raise ValueError(f"lookahead must be a finite number >= cell = {self.cell} m, got "
+                             f"{self.lookahead!r}")
 
 
 @dataclass(frozen=True)
@@ -505,7 +520,7 @@ class Config:
 
     A ``config.json`` written before a part existed (e.g. ``sensor``) loads with that part's
     defaults, and one written before a setting moved loads it in its new place
-    (:meth:`from_dict`, :data:`MOVED`).
+    (:meth:`from_dict`, :data:`~paper_repro.config_history.MOVED`).
     """
 
     quadrotor: QuadrotorParams = field(default_factory=QuadrotorParams)
@@ -515,6 +530,7 @@ class Config:
     solver: SolverParams = field(default_factory=SolverParams)
     simulation: SimulationParams = field(default_factory=SimulationParams)
     sensor: SensorParams = field(default_factory=SensorParams)
+    guide: GuideParams = field(default_factory=GuideParams)
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -525,6 +541,9 @@ class Config:
             raise ValueError(f"distance.window must be < sensor.range = "
                              f"{self.sensor.range} m (a window as wide as the range "
                              f"sees nothing at full weight), got {self.distance.window!r}")
+        if self.guide.planner != "none" and self.sensor.map_voxel == 0:
+            raise ValueError(f"guide.planner {self.guide.planner!r} plans on the local map: "
+                             "set sensor.map_voxel > 0 (a voxel side in m, e.g. 0.5)")
         for name in ("reaction_time", "sweep_time", "moving_d_min", "equilibrium_lookahead"):
             value = getattr(self.barrier, name)
             if value > 0 and self.nmpc.prediction == "static":
@@ -551,20 +570,18 @@ class Config:
 
     def key_dict(self) -> dict:
         """What a run's cache key hashes: :meth:`to_dict` without the settings of
-        :data:`ADDED` that hold the value they were added with."""
+        :data:`~paper_repro.config_history.ADDED` that hold the value they were added with."""
         data = self.to_dict()
-        for (part, name), neutral in ADDED.items():
-            if data[part][name] == neutral:
-                del data[part][name]
-        return data
+        return without_added(data, Config().to_dict())
 
     @classmethod
     def from_dict(cls, data: dict) -> Config:
         """Inverse of :meth:`to_dict`; a missing part (an older file) takes its defaults, and a
-        setting in its former place (:data:`MOVED`) is read into its new one."""
+        setting in its former place (:data:`~paper_repro.config_history.MOVED`) is read into
+        its new one."""
         if not isinstance(data, dict):
             raise ValueError(f"config must be a dict of parts, got {type(data).__name__}")
-        data = _moved_settings(data)
+        data = moved_settings(data)
         unknown = set(data) - {f.name for f in dataclasses.fields(cls)}
         if unknown:
             raise ValueError(f"config has unknown parts {sorted(unknown)}")

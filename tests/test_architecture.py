@@ -11,7 +11,8 @@ import pytest
 ROOT = Path(__file__).parents[1] / "paper_repro"
 
 LAYERS = (
-    {"config", "presets", "validation", "paths", "progress", "_native"},  # imported by all
+    {"config", "config_history", "presets", "validation", "paths", "progress",
+     "_native"},  # imported by all
     {"vehicles"},
     {"problem"},
     {"solvers"},

@@ -170,9 +170,9 @@ def test_the_equilibrium_looks_ahead_along_the_regions_path_and_the_stages_do_no
 
 def test_the_equilibrium_lookahead_is_checked_needs_a_prediction_and_keeps_every_key():
     """Bad values are named; the static prediction refuses it; at its neutral value 0 a run's
-    cache key is the one it had before the setting existed (config.ADDED), any other value
+    cache key is the one it had before the setting existed (config_history.ADDED), any other value
     changes it, and a stored configuration reads back whole."""
-    from paper_repro.config import ADDED
+    from paper_repro.config_history import ADDED
     from paper_repro.studies.runs import _hash, run_key
 
     for bad in (-0.5, 11.0, float("nan")):
@@ -188,8 +188,11 @@ def test_the_equilibrium_lookahead_is_checked_needs_a_prediction_and_keeps_every
     assert ("barrier", "equilibrium_lookahead") in ADDED
     for cfg in (Config(), dataclasses.replace(on, barrier=BarrierParams())):
         before = cfg.to_dict()
-        for part, name in ADDED:  # the layout before the settings added since
-            del before[part][name]
+        for part, name in ADDED:  # the layout before the settings (and parts) added since
+            if name is None:
+                del before[part]
+            else:
+                del before[part][name]
         assert cfg.key_dict() == before and Config.from_dict(before) == cfg
         assert run_key(cfg, 100, "scene") == run_key(Config.from_dict(before), 100, "scene")
         from paper_repro.evidence.golden import golden_hash

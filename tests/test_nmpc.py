@@ -17,7 +17,7 @@ from paper_repro import (
     clearance,
     make_scene,
 )
-from paper_repro.config import MOVED
+from paper_repro.config_history import MOVED
 from paper_repro.problem.ocp import OCP
 from paper_repro.sim.loop import simulate
 from paper_repro.solvers.ipopt import TrackingNMPC

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from paper_repro.config import Config
+from paper_repro.config import Config, relaxed_box
 from paper_repro.problem.ocp import Controller, NMPCSolution, selected_states
 from paper_repro.progress import step_progress
 from paper_repro.sim.checks import SetupHazardWarning, check_setup, setup_hazards
@@ -25,6 +25,7 @@ from paper_repro.sim.result import FAULT_STATUSES, RESULT_ARRAYS, SimulationResu
 from paper_repro.solvers.factory import make_controller
 from paper_repro.vehicles.base import VehicleModel
 from paper_repro.vehicles.quadrotor import quadrotor_model
+from paper_repro.world.guide import Guide
 from paper_repro.world.lidar import Lidar
 from paper_repro.world.local_map import MAPPED_SPEED, VoxelMap
 from paper_repro.world.scenarios import make_scene
@@ -120,7 +121,8 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     output = _output_map(model)
     truth = _TrueClearance(scene)
     predict = _predictor(cfg.nmpc.prediction, lidar, ts)
-    read_map = _map_reader(cfg, scene)
+    read_map, local_map = _map_reader(cfg, scene)
+    guide = _guide(cfg, model, local_map)
     ctl = controller or make_controller(cfg, model)
     ctl.reset()
     counters = _SolverCounters(ctl)
@@ -130,7 +132,8 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     stall_steps = int(np.ceil(sim.stall_time / ts))
 
     log = _Log(sim.max_steps, model.nx, model.nu,
-               None if cfg.nmpc.prediction == "static" else (len(scene.clouds), scene.dim))
+               None if cfg.nmpc.prediction == "static" else (len(scene.clouds), scene.dim),
+               None if guide is None else scene.dim)
     reached = np.full(len(targets), -1)
     target_index, slow, outcome = 0, 0, "step_limit"
     plan: NMPCSolution | None = None
@@ -154,7 +157,10 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
             log.region_velocities[k] = velocities  # what the controller is handed
         if read_map is not None:
             visible = read_map(visible, y, t, velocities)
-        sol = _solve(ctl, measured, target, visible, plan, errors, velocities, model)
+        set_point = target
+        if guide is not None:  # the path's look-ahead, from the map just updated
+            set_point = log.set_points[k] = guide.set_point(local_map, y, t, target)
+        sol = _solve(ctl, measured, set_point, visible, plan, errors, velocities, model)
         if sol.success:
             plan, last_good = sol, measured
         else:
@@ -204,6 +210,8 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     meta["errors"] = errors
     meta["scene"] = scene.name
     meta.update(counters.since())
+    if guide is not None:
+        meta["guide"] = dict(guide.stats)
     return SimulationResult(targets=targets, reached=reached, outcome=outcome, scene=scene,
                             config=cfg, meta=meta, **arrays)
 
@@ -212,10 +220,10 @@ def _map_reader(cfg: Config, scene: Scene):
     """What the controller reads instead of the raw scan when ``sensor.map_voxel`` > 0: a
     function (visible, y, t, velocities) -> visible that updates a
     :class:`~paper_repro.world.local_map.VoxelMap` with the scan and returns its points within
-    r_s. A region predicted to move faster than ``MAPPED_SPEED`` stays out of the map and is
-    read from the scan. None when the map is off (the paper)."""
+    r_s, and the map. A region predicted to move faster than ``MAPPED_SPEED`` stays out of the
+    map and is read from the scan. (None, None) when the map is off (the paper)."""
     if cfg.sensor.map_voxel == 0:
-        return None
+        return None, None
     if scene.dim != 3:
         raise ValueError(f"sensor.map_voxel needs a 3-D scene; {scene.name!r} is planar "
                          f"(p = {scene.dim}): set map_voxel = 0")
@@ -229,7 +237,22 @@ def _map_reader(cfg: Config, scene: Scene):
         mapped = local_map.regions(y, cfg.sensor.range, n)
         return [visible[i] if moving[i] else mapped[i] for i in range(n)]
 
-    return read
+    return read, local_map
+
+
+def _guide(cfg: Config, model: VehicleModel, local_map: VoxelMap | None) -> Guide | None:
+    """The :class:`~paper_repro.world.guide.Guide` of ``cfg.guide`` on the map, in the
+    λ-relaxed box of the vehicle's position states (where the artificial equilibrium may
+    rest); None when the set-point is the target (the paper)."""
+    g = cfg.guide
+    if g.planner == "none":
+        return None
+    lower, upper = relaxed_box(model.state_lower, model.state_upper, cfg.nmpc.lam)
+    index = list(model.position)
+    return Guide(lower[index], upper[index], cell=g.cell, inflation=g.inflation,
+                 lookahead=g.lookahead, check_period=g.check_period,
+                 replan_period=g.replan_period, max_turn=g.max_turn, climb=g.climb,
+                 stuck_time=g.stuck_time)
 
 
 def _predictor(prediction: str, lidar: Lidar, ts: float):
@@ -306,9 +329,11 @@ def _output_map(model: VehicleModel):
 class _Log:
     """Preallocated per-step arrays of :func:`simulate` (no list growth in the loop)."""
 
-    def __init__(self, capacity: int, nx: int, nu: int, regions: tuple | None = None):
+    def __init__(self, capacity: int, nx: int, nu: int, regions: tuple | None = None,
+                 set_points: int | None = None):
         self.n = 0
         self.region_velocities = None if regions is None else np.empty((capacity, *regions))
+        self.set_points = None if set_points is None else np.empty((capacity, set_points))
         self.t = np.empty(capacity)
         self.x = np.empty((capacity + 1, nx))
         self.u = np.empty((capacity, nu))
@@ -339,8 +364,9 @@ class _Log:
         out = {k: getattr(self, k)[:n].copy() for k in RESULT_ARRAYS if k != "x"}
         out["x"] = self.x[:n + 1].copy()
         out["status"] = self.status[:n].astype(str)
-        if self.region_velocities is not None:
-            out["region_velocities"] = self.region_velocities[:n].copy()
+        for name in ("region_velocities", "set_points"):
+            if getattr(self, name) is not None:
+                out[name] = getattr(self, name)[:n].copy()
         return out
 
 

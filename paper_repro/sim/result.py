@@ -52,6 +52,8 @@ class SimulationResult:
         was handed at each step (the regions' true ones for ``prediction="oracle"``, the
         tracker's estimates for ``"kalman"``); ``None`` for ``"static"`` (the paper: the
         regions are taken to stay where they are seen).
+    set_points : (K, p) m, the set-point y_t the guide handed the controller at each step
+        (``guide.planner`` ``"grid"``); ``None`` when it is the active target (the paper).
     targets : (k, 3) m.   reached : (k,) step at which each target was reached (−1 if not).
     outcome : one of :data:`OUTCOMES`.
     scene : the :class:`~paper_repro.world.scene.Scene` flown, clouds and motions included (saved
@@ -80,6 +82,7 @@ class SimulationResult:
     config: Config
     meta: dict = field(default_factory=dict)
     region_velocities: np.ndarray | None = None
+    set_points: np.ndarray | None = None
 
     @property
     def steps(self) -> int:
@@ -140,8 +143,9 @@ class SimulationResult:
         out.mkdir(parents=True, exist_ok=True)
         arrays = {k: getattr(self, k) for k in RESULT_ARRAYS}
         clouds = {f"cloud_{i}": c for i, c in enumerate(self.scene.clouds)}
-        if self.region_velocities is not None:
-            arrays["region_velocities"] = self.region_velocities
+        for name in ("region_velocities", "set_points"):
+            if getattr(self, name) is not None:
+                arrays[name] = getattr(self, name)
         np.savez_compressed(out / "result.npz", status=self.status.astype(str),
                             targets=self.targets, reached=self.reached, **arrays, **clouds)
         payload = {"config": self.config.to_dict(), "scene": self.scene.to_dict(),

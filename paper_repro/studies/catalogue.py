@@ -8,7 +8,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from paper_repro.config import PREDICTIONS, Config, SensorParams
+from paper_repro.config import PREDICTIONS, Config, GuideParams, SensorParams
 from paper_repro.studies.runs import RunSpec
 from paper_repro.validation import require_int
 
@@ -143,25 +143,75 @@ NOISY_LIDAR = SensorParams(range_noise=0.05, dropout=0.2, spurious_rate=2.0)
 spurious returns per scan on average; seeded per scene."""
 
 
+MAP_VOXEL = 0.5
+"""Voxel side (m) of the local map the studies fly (``sensor.map_voxel``): below the clouds'
+0.7 m spacing, so that a wall stays a wall of points."""
+
+
+def with_map(config: Config) -> Config:
+    """``config`` with the controller reading the local map (:data:`MAP_VOXEL`)."""
+    return dataclasses.replace(config, sensor=dataclasses.replace(config.sensor,
+                                                                  map_voxel=MAP_VOXEL))
+
+
+def with_guide(config: Config) -> Config:
+    """``config`` with the local map and the guide (``guide.planner = "grid"``, the defaults of
+    :class:`~paper_repro.config.GuideParams`) handing the NMPC its set-points."""
+    return dataclasses.replace(with_map(config), guide=GuideParams(planner="grid"))
+
+
 def sensor_noise(quick: bool = False, scenes: int | None = None,
                  base: Config | None = None) -> Study:
-    """Smooth against Euclidean with a perfect and a noisy LiDAR (:data:`NOISY_LIDAR`), on
-    ``scenes`` random passages (8; 2 with ``quick``; the perfect runs are those of
+    """Smooth against Euclidean with a perfect and a noisy LiDAR (:data:`NOISY_LIDAR`), and the
+    noisy one read through the local map (``sensor`` label ``"noisy-map"``, :func:`with_map`),
+    on ``scenes`` random passages (8; 2 with ``quick``; the perfect runs are those of
     :func:`monte_carlo`). The smoothed distance averages many points where the Euclidean one
-    follows the nearest, so noise should widen the gap."""
+    follows the nearest, so noise should widen the gap; the map should take the noise out."""
     n, base, steps = _passages(quick, scenes, 8, base)
     specs = []
-    for level, sensor in (("perfect", base.sensor), ("noisy", NOISY_LIDAR)):
+    for level, tag in (("perfect", ""), ("noisy", "noisy"), ("noisy-map", "noisy-map")):
         for metric in ("smooth", "euclidean"):
             for seed in range(n):
-                cfg = dataclasses.replace(base, sensor=dataclasses.replace(sensor, seed=seed)
-                                          if level == "noisy" else sensor)
-                spec = passage_spec(seed, metric, max_steps=steps, base=cfg,
-                                    tag="" if level == "perfect" else "noisy")
+                cfg = base if level == "perfect" else dataclasses.replace(
+                    base, sensor=dataclasses.replace(NOISY_LIDAR, seed=seed))
+                cfg = with_map(cfg) if level == "noisy-map" else cfg
+                spec = passage_spec(seed, metric, max_steps=steps, base=cfg, tag=tag)
                 specs.append(dataclasses.replace(spec, labels=spec.labels
                                                  + (("sensor", level),)))
     return Study("sensor_noise" + ("-quick" if quick else ""), tuple(specs),
-                 f"smooth vs euclidean, perfect vs noisy LiDAR ({NOISY_LIDAR}), {n} passages")
+                 f"smooth vs euclidean, perfect vs noisy LiDAR ({NOISY_LIDAR}) vs the noisy "
+                 f"one through the local map ({MAP_VOXEL} m voxels), {n} passages")
+
+
+GUIDANCE_ARMS = ("paper", "map", "map+guide")
+"""The arms of :func:`guidance`: the paper's controller on the raw scan, the same controller
+reading the local map, and the map with the guide handing it its set-points."""
+
+GUIDANCE_EUCLIDEAN_SCENES = 30
+"""Passages of :func:`guidance` flown with the Euclidean baseline in the map arms (its
+paper arm is the Monte Carlo study's 100): a Euclidean passage costs about four times a
+smoothed one (it chatters, and 38 % of them fly to the step limit), and the study's goals are
+on the smoothed metric, the paper's proposal."""
+
+
+def guidance(quick: bool = False, scenes: int | None = None,
+             base: Config | None = None) -> Study:
+    """The random passages of :func:`monte_carlo` (100; 2 with ``quick``) × the arms of
+    :data:`GUIDANCE_ARMS` × both metrics (the Euclidean map arms on the first
+    :data:`GUIDANCE_EUCLIDEAN_SCENES`). Does a map and a guide take the paper's controller past
+    the deadlocks of a local NMPC, and at what cost in flight time?"""
+    n, base, steps = _passages(quick, scenes, 100, base)
+    specs = []
+    for arm, make, tag in (("paper", lambda c: c, ""), ("map", with_map, "map"),
+                           ("map+guide", with_guide, "guide")):
+        for metric in ("smooth", "euclidean"):
+            m = n if metric == "smooth" or arm == "paper" else min(n, GUIDANCE_EUCLIDEAN_SCENES)
+            for seed in range(m):
+                spec = passage_spec(seed, metric, max_steps=steps, base=make(base), tag=tag)
+                specs.append(dataclasses.replace(spec, labels=spec.labels + (("arm", arm),)))
+    return Study("guidance" + ("-quick" if quick else ""), tuple(specs),
+                 f"{n} random passages x {GUIDANCE_ARMS} x both metrics (the euclidean map "
+                 f"arms on {min(n, GUIDANCE_EUCLIDEAN_SCENES)}), printed parameters")
 
 
 SENSING_WINDOWS = (0.0, 0.5, 1.0)
@@ -261,7 +311,8 @@ STUDIES: dict[str, Callable[..., Study]] = {"monte_carlo": monte_carlo, "eta_swe
                                             "sensor_noise": sensor_noise,
                                             "sensing_window": sensing_window,
                                             "moving_obstacles": moving_obstacles,
-                                            "timeline": timeline_flights}
+                                            "timeline": timeline_flights,
+                                            "guidance": guidance}
 """The studies ``python -m paper_repro study NAME`` knows."""
 
 
@@ -343,7 +394,8 @@ def make_study(name: str, quick: bool = False, base: Config | None = None,
 
 STUDY_NOTEBOOKS = {"monte_carlo": "09_monte_carlo", "eta_sweep": "10_eta_sweep",
                    "sensor_noise": "13_sensor_noise", "sensing_window": "15_smooth_sensing",
-                   "moving_obstacles": "16_moving_obstacles", "timeline": "11_timeline"}
+                   "moving_obstacles": "16_moving_obstacles", "timeline": "11_timeline",
+                   "guidance": "17_guidance"}
 """The notebook that draws each study's figures from its saved table."""
 
 STUDY_NOTEBOOK_QUICK = {"sensing_window": {"mission": "encounter", "mission_steps": 3000},

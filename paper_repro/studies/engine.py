@@ -278,7 +278,7 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
         _atomic(out / "timings.csv", lambda p: table[["name", *timing]].to_csv(p, index=False))
     else:
         _current_locations(out / "timings.csv", table)
-    # The base as a run's key sees it (config.ADDED settings at their neutral value left
+    # The base as a run's key sees it (config_history.ADDED settings at their neutral value left
     # out, as before they existed); the changes against the whole base.
     base = study.specs[0].config.to_dict()
     meta = {"name": study.name, "description": study.description,

@@ -84,7 +84,7 @@ class RunSpec:
 
 
 def run_key(config: Config, max_steps: int, scene_fingerprint: str) -> str:
-    """SHA-256 (hex) of a run: ``config.key_dict()`` (:data:`~paper_repro.config.ADDED`),
+    """SHA-256 (hex) of a run: ``config.key_dict()`` (:data:`~paper_repro.config_history.ADDED`),
     ``max_steps``, the scene fingerprint and the golden hash (the code's behaviour)."""
     from paper_repro.evidence.golden import golden_hash
 
@@ -95,7 +95,8 @@ def run_key(config: Config, max_steps: int, scene_fingerprint: str) -> str:
 def rekey(results_dir=None) -> dict:
     """Move each cached run to the folder today's code keys it by, after a change of the
     configuration's layout that moves no flight (a setting added with a default, or moved to
-    another part, :data:`~paper_repro.config.MOVED`): the cache is kept instead of flown again.
+    another part, :data:`~paper_repro.config_history.MOVED`): the cache is kept instead of
+    flown again.
 
     A folder ``<name>-<key>`` is moved only when ``key`` is proven to be its run's key *as
     computed when it was written*: the SHA-256 of its stored configuration (as saved; with the
@@ -160,15 +161,11 @@ def rekey(results_dir=None) -> dict:
 
 
 def _without_added(config: dict) -> dict:
-    """A stored configuration without the settings of :data:`~paper_repro.config.ADDED` that
-    hold their neutral value, as :meth:`Config.key_dict` leaves it."""
-    from paper_repro.config import ADDED
+    """A stored configuration as :meth:`Config.key_dict` leaves it
+    (:func:`~paper_repro.config.without_added`)."""
+    from paper_repro.config_history import without_added
 
-    out = json.loads(json.dumps(config))
-    for (part, name), neutral in ADDED.items():
-        if isinstance(out.get(part), dict) and out[part].get(name, None) == neutral:
-            del out[part][name]
-    return out
+    return without_added(json.loads(json.dumps(config)), Config().to_dict())
 
 
 def _hash(payload: dict) -> str:

@@ -373,7 +373,7 @@ def _check_storage(url: str) -> None:
 
 def _check_stored(study, stored: dict) -> None:
     """A resumed study must be the same study: same objectives, space, step limit and base (a
-    base stored before a setting moved, :data:`~paper_repro.config.MOVED`, is read in the
+    base stored before a setting moved, :data:`~paper_repro.config_history.MOVED`, is read in the
     current layout)."""
     for k in ("objectives", "space", "max_steps", "require_completion", "base"):
         if k not in study.user_attrs:

@@ -1,5 +1,5 @@
 """The world the vehicle flies in: obstacle regions as point clouds, how they move, and what
-the LiDAR sees of them.
+the LiDAR sees of them, and what the robot makes of it: a map and a guide.
 
 =================  ==================================================================
 ``shapes``         boxes, cylinders, unions, differences; Halton clouds inside them
@@ -11,9 +11,11 @@ the LiDAR sees of them.
 ``lidar``          :class:`Lidar`, the virtual LiDAR (optionally imperfect)
 ``tracking``       :class:`RegionTracker`, a Kalman filter of the regions' velocities
 ``local_map``      :class:`VoxelMap`, a bounded log-odds map of the scans (an option)
+``guide``          :class:`Guide`, a path on the map handing the NMPC its set-points
 =================  ==================================================================
 """
 
+from paper_repro.world.guide import Guide
 from paper_repro.world.lidar import Lidar
 from paper_repro.world.local_map import VoxelMap
 from paper_repro.world.motion import Motion
@@ -59,6 +61,7 @@ __all__ = [
     "Cylinder",
     "Difference",
     "encounter_scene",
+    "Guide",
     "halton_cloud",
     "Lidar",
     "make_scene",

@@ -1,0 +1,66 @@
+"""How the settings of :mod:`paper_repro.config` changed since the committed evidence was
+flown: the settings that moved between parts (:data:`MOVED`) and the ones added since
+(:data:`ADDED`), so that an older ``config.json`` still loads and a run that flies as before
+keeps its cache key."""
+
+from __future__ import annotations
+
+MOVED = {
+    ("nmpc", "solver"): ("solver", "nlp_solver"),
+    ("nmpc", "sqp_iterations"): ("solver", "sqp_iterations"),
+    ("nmpc", "line_search"): ("solver", "line_search"),
+    ("nmpc", "qp_solver"): ("solver", "qp_solver"),
+    ("simulation", "lidar_range"): ("sensor", "range"),
+    ("simulation", "prediction"): ("nmpc", "prediction"),
+}
+"""Settings that moved between parts, (old part, old name) → (new part, new name): the
+solver's options left the problem's ``nmpc`` part, and the LiDAR's range and the prediction of
+moving regions left the mission (``simulation``)."""
+
+
+ADDED = {
+    ("barrier", "equilibrium_lookahead"): 0.0,
+    ("sensor", "map_voxel"): 0.0,
+    ("guide", None): None,
+}
+"""Settings added after the committed evidence was flown, (part, name) → the value that flies
+as before (the golden flights prove it). A run whose setting has that value is keyed as it was
+before the setting existed (:meth:`Config.key_dict`), so the committed tables and a cache of
+runs stay valid across the addition and nothing is flown again; any other value enters the key
+like every setting. A setting enters here only with the commit that adds it. A whole part
+added later is named ``(part, None)``: at its defaults it is left out of the key (its neutral
+value, None, stands for the part's defaults)."""
+
+
+def without_added(data: dict, defaults: dict) -> dict:
+    """``data`` (a :meth:`Config.to_dict`, or one read from a ``config.json``) without the
+    settings of :data:`ADDED` that hold their neutral value: what a run's key hashes.
+    ``defaults`` is the default configuration (``Config().to_dict()``), whose parts are the
+    neutral values of the parts added whole."""
+    data = {part: dict(values) if isinstance(values, dict) else values
+            for part, values in data.items()}
+    for (part, name), neutral in ADDED.items():
+        if name is None:
+            if part in data and data[part] == defaults[part]:
+                del data[part]
+        elif isinstance(data.get(part), dict) and data[part].get(name, None) == neutral:
+            del data[part][name]
+    return data
+
+
+def moved_settings(data: dict) -> dict:
+    """``data`` (a :meth:`Config.to_dict`) with every setting of :data:`MOVED` in its new
+    place; a setting given in both places is refused."""
+    data = {part: dict(values) if isinstance(values, dict) else values
+            for part, values in data.items()}
+    for (old_part, old_name), (new_part, new_name) in MOVED.items():
+        old = data.get(old_part)
+        if not (isinstance(old, dict) and old_name in old):
+            continue
+        new = data.setdefault(new_part, {})
+        if new_name in new:
+            raise ValueError(f"config gives {old_part}.{old_name} (its former place) and "
+                             f"{new_part}.{new_name}: give only {new_part}.{new_name}")
+        new[new_name] = old.pop(old_name)
+    return data
+

@@ -1,0 +1,180 @@
+"""The guide: its path keeps clear of what the map has seen, its set-point is free and turns
+smoothly, it replans when the map blocks the path or the vehicle is stuck, and it takes the
+paper's controller past a deadlock."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from paper_repro.analysis.metrics import COLLISION_CLEARANCE
+from paper_repro.config import Config, GuideParams, SensorParams
+from paper_repro.config_history import ADDED
+from paper_repro.sim.loop import simulate
+from paper_repro.studies.catalogue import passage_config, with_guide, with_map
+from paper_repro.world.guide import Guide, _turn
+from paper_repro.world.local_map import VoxelMap
+from paper_repro.world.shapes import Box, halton_cloud
+
+LOWER, UPPER = np.array([-10.0, -10.0, 0.1]), np.array([10.0, 10.0, 10.0])
+START, GOAL = np.array([-4.0, 0.0, 3.0]), np.array([8.0, 0.0, 3.0])
+
+
+def _mapped_wall(width=8.0):
+    """A map that has confirmed a wall 1 m thick and ``width`` m wide across the line from
+    START to GOAL, 3 m in front of the start (as if seen from the far side of it)."""
+    wall = halton_cloud(Box((0.0, 0.0, 3.0), (1.0, width, 6.0)), 3.0, 0)
+    m = VoxelMap(keep_radius=30.0)
+    for k in range(5):
+        m.update([wall], np.array([0.0, 0.0, 3.0]), 0.01 * k)
+    return m, m.point[m.occupied_mask]
+
+
+def _checks(guide, local_map, y, n, t0=0.0):
+    """The set-points of ``n`` successive checks with the vehicle held at y."""
+    return [guide.set_point(local_map, y, t0 + i * guide.check_period, GOAL).copy()
+            for i in range(n)]
+
+
+def test_an_empty_map_hands_over_the_goal_itself():
+    guide = Guide(LOWER, UPPER)
+    points = _checks(guide, VoxelMap(), START, 20)
+    assert all(np.array_equal(p, GOAL) for p in points)
+    assert guide.stats["plans"] == 1  # the straight path, never blocked: planned once
+
+
+def test_the_path_and_the_set_point_keep_clear_of_every_mapped_point():
+    local_map, wall = _mapped_wall()
+    guide = Guide(LOWER, UPPER, stuck_time=100.0)
+    points = _checks(guide, local_map, START, 80)
+    tree = cKDTree(wall)
+    # Every cell of the path (the goal, last, aside) lies farther than the inflation from
+    # every mapped point, and so does every set-point handed over.
+    assert tree.query(guide.path[:-1])[0].min() > guide.inflation
+    assert tree.query(np.array(points))[0].min() > guide.inflation
+    assert np.all((np.array(points) >= LOWER) & (np.array(points) <= UPPER))
+    # The path goes round the wall: its cells leave the line by more than half the wall.
+    assert np.abs(guide.path[:, 1]).max() > 4.0 or guide.path[:, 2].max() > 6.0
+    # and the pull turned away from the straight line through the wall.
+    final = points[-1] - START
+    angle = math.degrees(math.acos(np.dot(final, GOAL - START)
+                                   / np.linalg.norm(final) / np.linalg.norm(GOAL - START)))
+    assert angle > 10.0
+
+
+def test_the_pull_turns_by_at_most_max_turn_per_check():
+    local_map, _ = _mapped_wall()
+    guide = Guide(LOWER, UPPER, max_turn=3.0, stuck_time=100.0)
+    # pulled straight at the goal over an empty map, then the wall is mapped across the line
+    points = np.array(_checks(guide, VoxelMap(), START, 3)
+                      + _checks(guide, local_map, START, 60, t0=1.0))
+    level = points[:, :2] - START[:2]
+    level /= np.linalg.norm(level, axis=1, keepdims=True)
+    turns = np.degrees(np.arccos(np.clip(np.sum(level[1:] * level[:-1], axis=1), -1, 1)))
+    assert turns.max() <= 3.0 + 1e-6
+    assert turns.sum() > 10.0  # it did turn
+
+
+def test_turn_is_a_bounded_rotation_that_reaches_its_goal():
+    rng = np.random.default_rng(1)
+    for k in range(200):
+        current, want = (v / np.linalg.norm(v) for v in rng.normal(size=(2, 2 + k % 2)))
+        turned = _turn(current, want, math.radians(5.0))
+        assert np.linalg.norm(turned) == pytest.approx(1.0)
+        step = math.acos(np.clip(np.dot(turned, current), -1, 1))
+        before = math.acos(np.clip(np.dot(current, want), -1, 1))
+        after = math.acos(np.clip(np.dot(turned, want), -1, 1))
+        assert step <= math.radians(5.0) + 1e-9
+        assert after == pytest.approx(max(before - math.radians(5.0), 0.0), abs=1e-7)
+    # straight opposite: it still turns, by exactly the limit
+    turned = _turn(np.array([1.0, 0, 0]), np.array([-1.0, 0, 0]), 0.1)
+    assert math.acos(turned[0]) == pytest.approx(0.1)
+
+
+def test_a_wall_across_the_path_makes_a_plan_and_a_wall_beside_it_does_not():
+    guide = Guide(LOWER, UPPER, stuck_time=100.0)  # held still, but not stuck
+    empty = VoxelMap(keep_radius=30.0)
+    _checks(guide, empty, START, 3)
+    assert guide.stats["plans"] == 1
+    beside = halton_cloud(Box((2.0, 7.0, 3.0), (1.0, 1.0, 1.0)), 3.0, 1)  # 7 m off the line
+    for k in range(4):
+        empty.update([beside], np.array([2.0, 7.0, 3.0]), 0.01 * k)
+    _checks(guide, empty, START, 20, t0=1.0)
+    assert guide.stats["plans"] == 1
+    local_map, _ = _mapped_wall()
+    _checks(guide, local_map, START, 20, t0=3.0)
+    assert guide.stats["plans"] == 2
+
+
+def test_a_stuck_vehicle_avoids_the_cells_before_it_and_plans_again():
+    """Held still far from the goal with the goal in sight (the map sees no obstacle), the
+    vehicle is stuck after stuck_time: the cells towards its aim are avoided and the path
+    goes elsewhere."""
+    guide = Guide(LOWER, UPPER, stuck_time=2.5)
+    _checks(guide, VoxelMap(), START, 40)  # 4 s without moving
+    assert guide.stats["stuck"] >= 1 and guide.stats["plans"] >= 2
+    assert guide.avoid.any()
+    centres = guide._centres(np.stack(np.unravel_index(np.flatnonzero(guide.avoid),
+                                                       guide.shape), axis=1))
+    # the avoided cells lie between the vehicle and its goal, and the new path avoids them
+    assert np.all(centres[:, 0] > START[0]) and np.abs(centres[:, 1]).max() < 1.0
+    cells = guide._flat(guide._cell(guide.path[:-1]))
+    assert not guide.avoid[cells].any()
+
+
+def test_guide_parameters_are_checked_and_need_the_map():
+    for name, bad in (("cell", 0.0), ("inflation", -1.0), ("check_period", math.nan),
+                      ("max_turn", 0.0), ("stuck_time", -2.0), ("climb", 0.0)):
+        with pytest.raises(ValueError, match=rf"^{name} must be a finite number > 0"):
+            GuideParams(**{name: bad})
+    with pytest.raises(ValueError, match=r"^lookahead must be a finite number >= cell"):
+        GuideParams(lookahead=0.5)
+    with pytest.raises(ValueError, match=r"^planner must be one of"):
+        GuideParams(planner="rrt")
+    with pytest.raises(ValueError, match=r"^guide.planner 'grid' plans on the local map"):
+        Config(guide=GuideParams(planner="grid"))
+    with pytest.raises(ValueError, match=r"^lower and upper must be"):
+        Guide(UPPER, LOWER)
+
+
+def test_the_guide_off_keeps_every_key_and_on_enters_it():
+    """A config without the guide is keyed as before the part existed (config_history.ADDED), reads
+    back from a file that lacks it, and a guided config keys and reads back whole."""
+    assert ("guide", None) in ADDED
+    cfg = Config()
+    before = cfg.to_dict()
+    del before["guide"]
+    for part, name in ADDED:
+        if name is not None:
+            del before[part][name]
+    assert cfg.key_dict() == before and Config.from_dict(before) == cfg
+    guided = Config(sensor=SensorParams(map_voxel=0.5), guide=GuideParams(planner="grid"))
+    assert guided.key_dict()["guide"]["planner"] == "grid"
+    assert Config.from_dict(guided.key_dict()) == guided
+
+
+def test_map_and_guide_take_the_paper_controller_past_a_deadlock():
+    """Random passage 24 (a cylinder, a U-channel and an L-wall across the line): the paper's
+    controller stalls in front of the channel; reading the map, with the guide handing it its
+    set-points, it completes the passage without a collision, and the set-point it was handed
+    was never within the inflation of a cloud point."""
+    paper = simulate(passage_config(Config(), 24), progress=False)
+    assert paper.outcome == "stalled"
+    guided = simulate(passage_config(with_guide(Config()), 24), progress=False)
+    assert guided.outcome == "completed"
+    assert guided.clearance.min() > COLLISION_CLEARANCE
+    assert guided.set_points is not None and guided.set_points.shape == (guided.steps, 3)
+    tree = cKDTree(guided.scene.all_points)
+    away = tree.query(guided.set_points)[0]
+    assert away.min() > GuideParams().inflation - 0.5  # mapped points sit within a voxel
+    assert guided.meta["guide"]["plans"] >= 2
+
+
+def test_the_map_alone_does_not_move_the_set_point():
+    cfg = with_map(Config())
+    assert cfg.guide.planner == "none" and cfg.sensor.map_voxel > 0
+    result = simulate(dataclasses.replace(passage_config(cfg, 24), simulation=dataclasses.replace(
+        passage_config(cfg, 24).simulation, max_steps=50)), progress=False)
+    assert result.set_points is None
