@@ -64,13 +64,16 @@ STUDY_OUTPUTS = {
                             "moving_obstacles_rates.png", "moving_obstacles_summary.csv",
                             "moving_obstacles_paired.csv", "moving_obstacles_paired.png",
                             "moving_obstacles_design_paired.csv"),
+    "17_guidance": ("guidance_rates.csv", "guidance_rates.png", "guidance_paired.csv",
+                    "guidance_times.csv", "guidance_scene.csv", "guidance_scene.png",
+                    "guidance_scene_thrusts.png"),
     "11_timeline": ("timeline_levers.csv", "timeline_levers.png", "timeline_flights.csv",
                     "timeline_flights.png"),
 }
 # Study notebooks that also fly: a short mission, cached in the test's folder.
 STUDY_OVERRIDES = {"15_smooth_sensing": {"mission": "encounter", "mission_steps": 3000},
                    "16_moving_obstacles": {"crossing_steps": 1500, "frames": 8},
-                   "11_timeline": {"quick": True}}
+                   "11_timeline": {"quick": True}, "17_guidance": {"scene_steps": 400}}
 
 
 @pytest.fixture(scope="session")
@@ -186,7 +189,16 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, executed
         assert len(settings) == 3 and (settings["runs"] == 2).all()
     elif name == "13_sensor_noise":
         paired = pd.read_csv(figures / "sensor_noise_paired.csv")
-        assert set(paired["sensor"]) == {"perfect", "noisy"} and (paired["scenes"] == 2).all()
+        assert set(paired["sensor"]) == {"perfect", "noisy", "noisy-map"}
+        assert (paired["scenes"] == 2).all()
+    elif name == "17_guidance":
+        rates = pd.read_csv(figures / "guidance_rates.csv")
+        assert set(rates["arm"]) == {"paper", "map", "map+guide"} and (rates["n"] == 2).all()
+        per_group = rates[rates["event"] != "collision"].groupby(["arm", "metric"])["k"]
+        assert len(per_group) == 6 and (per_group.sum() == 2).all()  # one class per run
+        scene = pd.read_csv(figures / "guidance_scene.csv")
+        assert list(scene["arm"]) == ["paper", "map", "map+guide"]
+        assert (scene["steps"] == 400).all() and scene["set_point_moves"].iloc[:2].eq(0).all()
     elif name == "16_moving_obstacles":
         rates = pd.read_csv(figures / "moving_obstacles_rates.csv")
         assert set(rates["prediction"]) == set(PREDICTIONS) and (rates["n"] == 2).all()

@@ -10,6 +10,7 @@
 ``sensing``        the smooth sensing window
 ``moving``         moving obstacles and their prediction
 ``tuning``         the tuning's front, importances and held-out comparison
+``guidance``       a passage flown with and without the local map and the guide
 =================  ==================================================================
 
 The paper's figures (Section V): Fig. 1 :func:`plot_flight_3d`; Figs. 2, 3
@@ -57,6 +58,7 @@ from paper_repro.plots.flight import (
     view_window,
     workspace_limits,
 )
+from paper_repro.plots.guidance import ARM_COLOURS, plot_guided_passage, plot_guided_thrusts
 from paper_repro.plots.moving import (
     GHOST_COLOR,
     PREDICTION_COLOURS,
@@ -86,6 +88,7 @@ from paper_repro.plots.tuning import plot_front, plot_heldout, plot_importances
 
 __all__ = [
     "animate_crossing",
+    "ARM_COLOURS",
     "animate_flight",
     "avoidance_window",
     "axes3d_or_new",
@@ -111,6 +114,8 @@ __all__ = [
     "plot_flight_clocks",
     "plot_front",
     "plot_gradient_field",
+    "plot_guided_passage",
+    "plot_guided_thrusts",
     "plot_half_squared_limit",
     "plot_heldout",
     "plot_importances",

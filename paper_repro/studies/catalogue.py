@@ -187,31 +187,22 @@ GUIDANCE_ARMS = ("paper", "map", "map+guide")
 """The arms of :func:`guidance`: the paper's controller on the raw scan, the same controller
 reading the local map, and the map with the guide handing it its set-points."""
 
-GUIDANCE_EUCLIDEAN_SCENES = 30
-"""Passages of :func:`guidance` flown with the Euclidean baseline in the map arms (its
-paper arm is the Monte Carlo study's 100): a Euclidean passage costs about four times a
-smoothed one (it chatters, and 38 % of them fly to the step limit), and the study's goals are
-on the smoothed metric, the paper's proposal."""
-
-
 def guidance(quick: bool = False, scenes: int | None = None,
              base: Config | None = None) -> Study:
     """The random passages of :func:`monte_carlo` (100; 2 with ``quick``) × the arms of
-    :data:`GUIDANCE_ARMS` × both metrics (the Euclidean map arms on the first
-    :data:`GUIDANCE_EUCLIDEAN_SCENES`). Does a map and a guide take the paper's controller past
-    the deadlocks of a local NMPC, and at what cost in flight time?"""
+    :data:`GUIDANCE_ARMS` × both metrics (the paper arm is the Monte Carlo study's runs). Do a
+    map and a guide take the paper's controller past the deadlocks of a local NMPC, and at
+    what cost in flight time?"""
     n, base, steps = _passages(quick, scenes, 100, base)
     specs = []
     for arm, make, tag in (("paper", lambda c: c, ""), ("map", with_map, "map"),
                            ("map+guide", with_guide, "guide")):
         for metric in ("smooth", "euclidean"):
-            m = n if metric == "smooth" or arm == "paper" else min(n, GUIDANCE_EUCLIDEAN_SCENES)
-            for seed in range(m):
+            for seed in range(n):
                 spec = passage_spec(seed, metric, max_steps=steps, base=make(base), tag=tag)
                 specs.append(dataclasses.replace(spec, labels=spec.labels + (("arm", arm),)))
     return Study("guidance" + ("-quick" if quick else ""), tuple(specs),
-                 f"{n} random passages x {GUIDANCE_ARMS} x both metrics (the euclidean map "
-                 f"arms on {min(n, GUIDANCE_EUCLIDEAN_SCENES)}), printed parameters")
+                 f"{n} random passages x {GUIDANCE_ARMS} x both metrics, printed parameters")
 
 
 SENSING_WINDOWS = (0.0, 0.5, 1.0)
@@ -399,11 +390,13 @@ STUDY_NOTEBOOKS = {"monte_carlo": "09_monte_carlo", "eta_sweep": "10_eta_sweep",
 """The notebook that draws each study's figures from its saved table."""
 
 STUDY_NOTEBOOK_QUICK = {"sensing_window": {"mission": "encounter", "mission_steps": 3000},
-                        "moving_obstacles": {"crossing_steps": 1500}, "timeline": {"quick": True}}
+                        "moving_obstacles": {"crossing_steps": 1500}, "timeline": {"quick": True},
+                        "guidance": {"scene_steps": 400}}
 """Notebook parameters of a ``--quick`` study beyond its table (notebook 15 also flies one
 mission with and without the window: the encounter's first 30 s instead of the paper's;
 notebook 16 flies the crossing scene with each prediction: its first 15 s, past the meeting,
-instead of the whole passage; notebook 11 sweeps fewer values per lever)."""
+instead of the whole passage; notebook 11 sweeps fewer values per lever; notebook 17 flies its
+deadlock scene's first 4 s)."""
 
 
 def _passages(quick: bool, scenes: int | None, default: int, base: Config | None):
