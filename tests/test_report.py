@@ -3,6 +3,7 @@
 
 import pytest
 
+from paper_repro.evidence import formatting
 from paper_repro.evidence import readme as report
 
 
@@ -26,5 +27,5 @@ def test_render_replaces_only_block_bodies_and_names_unknown_blocks():
 
 
 def test_a_bar_inside_a_cell_is_escaped():
-    table = report.markdown_table(["max |Δu|"], [["1 | 2"]])
+    table = formatting.markdown_table(["max |Δu|"], [["1 | 2"]])
     assert table.splitlines()[0] == "| max \\|Δu\\| |" and "1 \\| 2" in table

@@ -4,9 +4,11 @@ of the README and the book formatted from the committed tables.
 =================  ==================================================================
 ``golden``         the golden flights and the stamps every evidence set carries
 ``readme``         the tables of the README and the book, from the committed ones
+``formatting``     how those tables write a rate, a share, a ratio, a time
 =================  ==================================================================
 """
 
+from paper_repro.evidence.formatting import markdown_table
 from paper_repro.evidence.golden import (
     EVIDENCE_SETS,
     GOLDEN_FLIGHTS,
@@ -28,7 +30,6 @@ from paper_repro.evidence.golden import (
 from paper_repro.evidence.readme import (
     BLOCKS,
     blocks,
-    markdown_table,
     page_blocks,
     page_paths,
     readme_path,

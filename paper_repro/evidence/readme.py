@@ -18,6 +18,7 @@ from pathlib import Path
 import pandas as pd
 
 from paper_repro import paths
+from paper_repro.evidence import formatting as fmt
 
 
 def summary() -> str:
@@ -31,9 +32,9 @@ def summary() -> str:
             rows.append([preset, "smoothed D" if r.metric == "smooth" else "Euclidean ½d²",
                          f"{r.mission_time_s:,.1f} s", r.targets_reached,
                          f"{r.failed_solves:,}", f"{r.tv_u_N:,.0f} N",
-                         _share(r.hf_energy_fraction), f"{r.du_sign_changes:,}",
+                         fmt.share(r.hf_energy_fraction), f"{r.du_sign_changes:,}",
                          f"{r.max_abs_du_N:.2f} N", f"{r.min_clearance_m:.3f} m"])
-    return markdown_table(["preset", "run", "mission time", "targets", "failed solves",
+    return fmt.markdown_table(["preset", "run", "mission time", "targets", "failed solves",
                       "total variation of u", "power > 5 Hz", "sign changes of Δu",
                       "max |Δu|", "min clearance"], rows)
 
@@ -61,46 +62,46 @@ def verdict() -> str:
     s, e = mission.loc["smooth"], mission.loc["euclidean"]
     rows = [
         ["the smoothed thrusts vary gently, the Euclidean ones chatter (Figs. 4 and 8)",
-         f"power above 5 Hz {_share(s.hf_energy_fraction)} against "
-         f"{_share(e.hf_energy_fraction)}; total variation {s.tv_u_N:,.0f} N against "
+         f"power above 5 Hz {fmt.share(s.hf_energy_fraction)} against "
+         f"{fmt.share(e.hf_energy_fraction)}; total variation {s.tv_u_N:,.0f} N against "
          f"{e.tv_u_N:,.0f} N", "`summary.csv`"],
         ["... and not only on the paper's scene",
-         f"Euclidean/smoothed total variation per passage ×{_num(tv.median_effect)} "
-         f"[{_num(tv.low)}, {_num(tv.high)}] over {tv.scenes:.0f} random passages",
+         f"Euclidean/smoothed total variation per passage ×{fmt.num(tv.median_effect)} "
+         f"[{fmt.num(tv.low)}, {fmt.num(tv.high)}] over {tv.scenes:.0f} random passages",
          "`mc_summary.csv`"],
         ["both keep clear of the clouds",
          f"min clearance {s.min_clearance_m:.2f} m and {e.min_clearance_m:.2f} m; collisions "
-         f"{_rate(rates.loc[('collision', 'smooth')])} and "
-         f"{_rate(rates.loc[('collision', 'euclidean')])} of the passages",
+         f"{fmt.rate(rates.loc[('collision', 'smooth')])} and "
+         f"{fmt.rate(rates.loc[('collision', 'euclidean')])} of the passages",
          "`summary.csv`, `mc_summary.csv`"],
         ["the mission ends within the figures' 500 s",
          f"{s.mission_time_s:,.0f} s with the printed parameters; "
          f"{timeline.loc['smooth'].mission_time_s:,.0f} s with N = 43 (`paper-timeline`)",
          "`summary.csv` of both presets"],
         ["(not claimed) the NMPC is local",
-         f"passages stalled in front of a wall: {_rate(rates.loc[('stalled', 'smooth')])} "
-         f"smoothed, {_rate(rates.loc[('stalled', 'euclidean')])} Euclidean",
+         f"passages stalled in front of a wall: {fmt.rate(rates.loc[('stalled', 'smooth')])} "
+         f"smoothed, {fmt.rate(rates.loc[('stalled', 'euclidean')])} Euclidean",
          "`mc_summary.csv`"],
         ["the controller: IPOPT solves the NLP at every instant",
          f"smoothed: it converges, and the real-time iteration flies its path to "
-         f"{_metres(smooth_dev)}; Euclidean: IPOPT stops at its iteration limit at "
+         f"{fmt.metres(smooth_dev)}; Euclidean: IPOPT stops at its iteration limit at "
          f"{at_limit('reference-iterate')} instants with a region in view (at "
          f"{at_limit('reference-3000')} with 3000 iterations), an SQP of 20 steps at "
          f"{at_limit('sqp')}: nothing converges there", "`fidelity.csv`"],
     ]
-    return markdown_table(["the paper", "measured here", "table"], rows)
+    return fmt.markdown_table(["the paper", "measured here", "table"], rows)
 
 
 def fidelity() -> str:
     """``figures/fidelity/fidelity.csv``: every window, every solver."""
     table = pd.read_csv(paths.figures_dir() / "fidelity" / "fidelity.csv")
-    rows = [[r.window, "rti (default)" if r.solver == "rti" else r.solver, _num(r.tv_per_s),
-             _ratio(r.tv_per_s_ratio),
+    rows = [[r.window, "rti (default)" if r.solver == "rti" else r.solver, fmt.num(r.tv_per_s),
+             fmt.ratio(r.tv_per_s_ratio),
              f"{r.hf_share:.2f}", f"{r.sign_changes:,}", f"{r.max_du:.2f}",
-             f"{r.jumps_1N}", f"{r.min_clearance_m:.3f}", _metres(r.deviation_m),
+             f"{r.jumps_1N}", f"{r.min_clearance_m:.3f}", fmt.metres(r.deviation_m),
              "—" if pd.isna(r.iteration_limit) else f"{r.iteration_limit:.0f} of {r.steps}"]
             for r in table.itertuples()]
-    return markdown_table(["window", "solver", "TV of u, N/s", "TV / IPOPT", "power > 5 Hz",
+    return fmt.markdown_table(["window", "solver", "TV of u, N/s", "TV / IPOPT", "power > 5 Hz",
                       "sign changes", "max |Δu|, N", "steps |Δu| > 1 N",
                       "min clearance, m", "from IPOPT's path", "at its iteration limit"], rows)
 
@@ -112,11 +113,11 @@ def ground_robot() -> str:
         pd.read_csv(folder / "ground_robot_timings.csv"), on=["metric", "solver"])
     names = {"reference": "IPOPT", "rti": "RTI (1 SQP step)", "sqp-2": "SQP, 2 steps"}
     rows = [["smooth" if r.metric == "smooth" else "Euclidean", names[r.solver],
-             f"{_ms(r.median_ms)} / {_ms(r.p99_ms)}", r.failures,
-             "—" if r.solver == "reference" else _metres(r.max_dev_m),
+             f"{fmt.ms(r.median_ms)} / {fmt.ms(r.p99_ms)}", r.failures,
+             "—" if r.solver == "reference" else fmt.metres(r.max_dev_m),
              f"{r.min_clearance_m:.3f} m", "yes" if r.passed else "no: stops in front",
              r.outcome, f"{r.steps:,}", f"{r.tv_per_s:.3f}"] for r in table.itertuples()]
-    return markdown_table(["metric", "solver", "median / p99 ms", "failed solves",
+    return fmt.markdown_table(["metric", "solver", "median / p99 ms", "failed solves",
                            "max deviation from IPOPT", "min clearance", "past the wall",
                            "outcome", "steps", "TV of (v, ω) per s"], rows)
 
@@ -130,12 +131,12 @@ def solver_speed(scenario: str) -> str:
              "rti-damped": "rti-damped (line search and damping)",
              "rti-hpipm": "rti-hpipm (HPIPM for every QP)", "sqp-2": "sqp-2",
              "sqp-converged": "sqp-converged"}
-    rows = [[names.get(r.solver, r.solver), _ms(r.median_ms), _ms(r.p95_ms), _ms(r.p99_ms),
-             _ms(r.max_ms), f"{r.iterations_median:.0f}", f"{r.failures:,}",
+    rows = [[names.get(r.solver, r.solver), fmt.ms(r.median_ms), fmt.ms(r.p95_ms), fmt.ms(r.p99_ms),
+             fmt.ms(r.max_ms), f"{r.iterations_median:.0f}", f"{r.failures:,}",
              "–" if r.solver == "reference" else f"{r.hpipm_qps:,} of {r.steps:,}",
-             f"{r.shortened:,}", _metres(r.max_dev_m) if r.solver != "reference" else "0",
+             f"{r.shortened:,}", fmt.metres(r.max_dev_m) if r.solver != "reference" else "0",
              f"{r.min_clearance_m:.3f} m"] for r in table.itertuples()]
-    return markdown_table(["solver", "median ms", "p95 ms", "p99 ms", "max ms", "iterations",
+    return fmt.markdown_table(["solver", "median ms", "p95 ms", "p99 ms", "max ms", "iterations",
                            "failures", "QPs sent to HPIPM", "shortened steps",
                            "max deviation from IPOPT", "min clearance"], rows)
 
@@ -146,10 +147,10 @@ def swept_pillar() -> str:
     folder = paths.figures_dir() / "solver_speed" / "swept_pillar"
     table = pd.read_csv(folder / "pillar.csv").merge(pd.read_csv(folder / "tails.csv"),
                                                      on="variant")
-    rows = [[r.variant, _ms(r.median_ms), _ms(r.p99_ms), _ms(r.max_ms),
+    rows = [[r.variant, fmt.ms(r.median_ms), fmt.ms(r.p99_ms), fmt.ms(r.max_ms),
              f"{r.over_ts:,} of {r.steps:,}", f"{r.hpipm_qps:,}", f"{r.min_clearance_m:.3f} m"]
             for r in table.itertuples()]
-    return markdown_table(["variant", "median ms", "p99 ms", "max ms", "calls over T_s",
+    return fmt.markdown_table(["variant", "median ms", "p99 ms", "max ms", "calls over T_s",
                            "QPs sent to HPIPM", "min clearance"], rows)
 
 
@@ -160,11 +161,11 @@ def monte_carlo() -> str:
     events = [("completed", "passage completed"), ("collision", "collision (< 0.35 m)"),
               ("stalled", "stalled (deadlock)"), ("step_limit", "step limit (150 s)"),
               ("failed", "run failed")]
-    rows = [[label, *(_rate(rates.loc[(event, m)]) for m in ("smooth", "euclidean"))]
+    rows = [[label, *(fmt.rate(rates.loc[(event, m)]) for m in ("smooth", "euclidean"))]
             for event, label in events]
-    head = markdown_table(["", "smoothed D", "Euclidean ½d²"], rows)
+    head = fmt.markdown_table(["", "smoothed D", "Euclidean ½d²"], rows)
     paired = table[table["kind"] == "paired"]
-    return head + "\n\n" + _paired(paired, "smoothed", "Euclidean")
+    return head + "\n\n" + fmt.paired_table(paired, "smoothed", "Euclidean")
 
 
 def eta_sweep() -> str:
@@ -179,26 +180,67 @@ def eta_sweep() -> str:
     for r in table.itertuples():
         name = ("Euclidean (η → 0)" if r.metric == "euclidean"
                 else f"η = {r.eta:g} m, σ = {r.sigma:g} m")
-        rows.append([name, f"{r.runs}", _share(r.hf_energy_fraction),
+        rows.append([name, f"{r.runs}", fmt.share(r.hf_energy_fraction),
                      f"{r.tv_u_rate_N_per_s:,.3g} N/s",
-                     _rate_of(r.completed_rate, r.completed_low, r.completed_high),
-                     _share(r.stalled_rate), _rate_of(r.collision_rate, r.collision_low,
+                     fmt.rate_of(r.completed_rate, r.completed_low, r.completed_high),
+                     fmt.share(r.stalled_rate), fmt.rate_of(r.collision_rate, r.collision_low,
                                                       r.collision_high),
                      f"{r.min_clearance_m:.2f} m"])
-    return markdown_table(["setting", "passages", "power > 5 Hz (median)", "TV of u (median)",
+    return fmt.markdown_table(["setting", "passages", "power > 5 Hz (median)", "TV of u (median)",
                       "completed", "stalled", "collision", "min clearance (median)"], rows)
 
 
 def sensor_noise() -> str:
     """``figures/studies/sensor_noise/sensor_noise_paired.csv``: Euclidean over smoothed, per
-    sensor."""
+    sensor (the noisy one raw, and through the local map)."""
     table = pd.read_csv(paths.figures_dir() / "studies" / "sensor_noise" /
                         "sensor_noise_paired.csv")
+    labels = {"perfect": "perfect LiDAR", "noisy": "noisy LiDAR",
+              "noisy-map": "noisy LiDAR, read through the local map"}
     parts = []
-    for sensor in ("perfect", "noisy"):
-        parts.append(f"*{sensor} LiDAR*\n\n" + _paired(table[table["sensor"] == sensor],
-                                                      "smoothed", "Euclidean"))
+    for sensor in dict.fromkeys(table["sensor"]):
+        parts.append(f"*{labels.get(sensor, sensor)}*\n\n" + fmt.paired_table(
+            table[table["sensor"] == sensor], "smoothed", "Euclidean"))
     return "\n\n".join(parts)
+
+
+def sensor_noise_cost() -> str:
+    """``figures/studies/sensor_noise/sensor_noise_cost.csv``: what the noisy LiDAR costs
+    each metric against the perfect one on the same passage, raw and through the map."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "sensor_noise" /
+                        "sensor_noise_cost.csv")
+    labels = {"noisy": "noisy, raw scan", "noisy-map": "noisy, through the map"}
+    rows = []
+    for r in table[table["measure"].isin(["hf_energy_fraction", "tv_u_rate_N_per_s"])
+                   ].itertuples():
+        rows.append([r.metric, labels.get(r.sensor, r.sensor), r.label,
+                     fmt.num(r.median_perfect), fmt.num(r.median_sensor),
+                     f"×{fmt.num(r.median_effect)} [{fmt.num(r.low)}, {fmt.num(r.high)}]",
+                     f"{int(r.scenes)}"])
+    return fmt.markdown_table(["metric", "sensor", "measure (median over scenes)",
+                               "perfect LiDAR", "this sensor", "ratio, per scene", "scenes"],
+                              rows)
+
+
+def guidance() -> str:
+    """``figures/studies/guidance/``: outcomes per arm and metric (``guidance_rates.csv``)
+    and the time to complete (``guidance_times.csv``)."""
+    folder = paths.figures_dir() / "studies" / "guidance"
+    rates = pd.read_csv(folder / "guidance_rates.csv").set_index(["arm", "metric", "event"])
+    times = pd.read_csv(folder / "guidance_times.csv").set_index(["metric", "arm"])
+    labels = {"paper": "the paper's controller (raw scan)", "map": "reading the local map",
+              "map+guide": "local map + guide"}
+    rows = []
+    for metric, name in (("smooth", "smoothed D"), ("euclidean", "Euclidean ½d²")):
+        for arm in dict.fromkeys(a for a, _, _ in rates.index):
+            t = times.loc[(metric, arm)]
+            rows.append([name, labels.get(arm, arm),
+                         *(fmt.rate(rates.loc[(arm, metric, event)])
+                           for event in ("completed", "stalled", "step_limit", "collision")),
+                         "—" if pd.isna(t.median_s) else f"{t.median_s:.1f} s"])
+    return fmt.markdown_table(["metric", "arm", "completed", "stalled (deadlock)",
+                               "step limit (150 s)", "collision (< 0.35 m)",
+                               "time to complete (median)"], rows)
 
 
 def sensing_window() -> str:
@@ -208,17 +250,17 @@ def sensing_window() -> str:
     folder = paths.figures_dir() / "studies" / "sensing_window"
     mission = pd.read_csv(folder / "sensing_window_mission.csv")
     rows = [["paper mission", f"{r.window_m:g} m", f"{r.scan_changes:g}",
-             _share(r.scan_change_jump_share),
+             fmt.share(r.scan_change_jump_share),
              f"p90 {1e3 * r.du_scan_change_p90_N:.3g} / {1e3 * r.du_around_changes_p90_N:.3g} mN",
              f"{r.mannwhitney_p:.2g}", f"{r.min_clearance_m:.3f} m", "—"]
             for r in mission.itertuples()]
     table = pd.read_csv(folder / "sensing_window_summary.csv")
     rows += [[f"{r.runs} random passages (median)", f"{r.window_m:g} m", f"{r.scan_changes:g}",
-              _share(r.jump_share),
+              fmt.share(r.jump_share),
               f"{1e3 * r.du_at_changes_N:.3g} / {1e3 * r.du_around_changes_N:.3g} mN", "",
               f"{r.min_clearance_median_m:.3f} m", f"{r.tv_u_rate_N_per_s:.3g} N/s"]
              for r in table.itertuples()]
-    return markdown_table(["run", "window w", "changes of the visible set",
+    return fmt.markdown_table(["run", "window w", "changes of the visible set",
                       "share with a step > 10 mN", "|Δu| at / around", "Mann–Whitney p",
                       "min clearance", "TV of u"], rows)
 
@@ -241,12 +283,12 @@ def moving_obstacles() -> str:
         row += [f"{s.min_clearance_median_m:.3f} / {e.min_clearance_median_m:.3f} m",
                 f"{s.min_clearance_min_m:.3f} / {e.min_clearance_min_m:.3f} m",
                 f"{s.tv_u_rate_median_N_per_s:.3g} / {e.tv_u_rate_median_N_per_s:.3g} N/s",
-                f"{_share(s.completed)} / {_share(e.completed)}",
+                f"{fmt.share(s.completed)} / {fmt.share(e.completed)}",
                 f"{int(s.failed_solves):,} / {int(e.failed_solves):,}",
-                f"{_share(s.cbf_condition_violated_share_median)} / "
-                f"{_share(e.cbf_condition_violated_share_median)}"]
+                f"{fmt.share(s.cbf_condition_violated_share_median)} / "
+                f"{fmt.share(e.cbf_condition_violated_share_median)}"]
         rows.append(row)
-    return markdown_table(["barrier", "prediction", "collisions, smoothed",
+    return fmt.markdown_table(["barrier", "prediction", "collisions, smoothed",
                            "collisions, Euclidean",
                            "min clearance, median (smoothed / Euclidean)", "closest approach",
                            "TV of u, median", "completed", "failed solves",
@@ -269,7 +311,7 @@ def avoidability() -> str:
                "their collisions are not counted against the controller.")
     paced = table.dropna(subset=["study_time_s"])
     k_p = int((paced["at_pace_outcome"] == "avoidable").sum())
-    return markdown_table(
+    return fmt.markdown_table(
         ["crossings", "avoidable", "no passage found", "clearance of the passages found",
          "first guess that found them", "avoidable within the study's time"],
         [[f"{n}", f"{k}/{n} [{100 * ci.low:.0f}, {100 * ci.high:.0f}] %", f"{n - k}",
@@ -286,10 +328,10 @@ def moving_levers() -> str:
              f"{r.collisions}/{r.runs} [{100 * r.collision_low:.0f}, "
              f"{100 * r.collision_high:.0f}] %", f"{r.min_clearance_m:.3f} m",
              f"{r.stalled}/{r.runs}", f"{r.tv_u_rate_median_N_per_s:.3g} N/s",
-             f"{r.failed_solves:,}", _share(r.cbf_condition_violated_share_median),
+             f"{r.failed_solves:,}", fmt.share(r.cbf_condition_violated_share_median),
              f"{r.time_to_complete_median_s:.0f} s"]
             for r in table.itertuples()]
-    return markdown_table(["crossings", "lever", "prediction", "metric", "a region in range",
+    return fmt.markdown_table(["crossings", "lever", "prediction", "metric", "a region in range",
                            "collisions", "closest approach", "stalled", "TV of u, median",
                            "failed solves", "steps breaking (15), median",
                            "time, median"], rows)
@@ -301,7 +343,7 @@ def timeline() -> str:
     rows = [[r.candidate, f"{r.predicted_s:,.0f} s", f"{r.mission_time_s:,.1f} s",
              f"{r.first_target_s:,.0f} s", r.avoidance, f"{r.min_clearance_m:.2f} m",
              f"{r.tv_u_N:,.0f} N"] for r in table.itertuples()]
-    return markdown_table(["candidate", "linear loop", "mission", "first target",
+    return fmt.markdown_table(["candidate", "linear loop", "mission", "first target",
                       "cloud in view", "min clearance", "total variation of u"], rows)
 
 
@@ -314,10 +356,10 @@ def tuning() -> str:
     folder = paths.figures_dir() / "tuning"
     front = pd.read_csv(folder / "tuning_pareto.csv")
     rows = [[f"{r.number}", f"{r.eta:g} m", f"{r.sigma:g} m", f"{r.d_min:g} m²",
-             f"{r.kappa:g}", f"{r.mu:g}", f"{r.delta:g}", _share(r.hf_energy_fraction),
+             f"{r.kappa:g}", f"{r.mu:g}", f"{r.delta:g}", fmt.share(r.hf_energy_fraction),
              f"{r.time_to_complete_s:.1f} s", f"{r.min_clearance_m:.2f} m"]
             for r in front.itertuples()]
-    parts = ["*The front (training passages)*\n\n" + markdown_table(
+    parts = ["*The front (training passages)*\n\n" + fmt.markdown_table(
         ["trial", "η", "σ", "d_min", "κ", "μ", "δ", "power > 5 Hz", "time to complete",
          "min clearance"], rows)]
     table = pd.read_csv(folder / "tuning_heldout_summary.csv")
@@ -329,7 +371,7 @@ def tuning() -> str:
         paired = paired.rename(columns={"median_printed": "median_smooth",
                                         f"median_{setup}": "median_euclidean"})
         parts.append(f"*{setup} (trial {trial}) against printed, per held-out scene*\n\n"
-                     + _paired(paired, "printed", setup))
+                     + fmt.paired_table(paired, "printed", setup))
     parts.append(_offered(presets))
     return "\n\n".join(parts)
 
@@ -338,10 +380,10 @@ def _heldout_rates(table: pd.DataFrame) -> str:
     """Completed, collision, stalled and step-limit rates per held-out set-up."""
     rates = table[table["kind"] == "rate"].set_index(["setup", "event"])
     setups = list(dict.fromkeys(rates.index.get_level_values(0)))
-    rows = [[label, *(_rate(rates.loc[(s, event)]) for s in setups)]
+    rows = [[label, *(fmt.rate(rates.loc[(s, event)]) for s in setups)]
             for event, label in (("completed", "completed"), ("collision", "collision"),
                                  ("stalled", "stalled"), ("step_limit", "step limit"))]
-    return markdown_table(["", *setups], rows)
+    return fmt.markdown_table(["", *setups], rows)
 
 
 def _offered(presets: dict) -> str:
@@ -372,7 +414,7 @@ def beyond() -> str:
 
     def collided(barrier: str, prediction: str) -> str:
         return ", ".join(
-            f"{label} {_rate(moving.loc[(barrier, prediction, metric, 'collision')])}"
+            f"{label} {fmt.rate(moving.loc[(barrier, prediction, metric, 'collision')])}"
             for metric, label in (("smooth", "smoothed"), ("euclidean", "Euclidean")))
 
     n = int(moving.loc[("paper", "oracle", "smooth", "collision")].n)
@@ -389,11 +431,11 @@ def beyond() -> str:
              f"{collided('design', 'kalman')}", "`moving_obstacles_rates.csv`"]]
     rates = tuned[tuned["kind"] == "rate"].set_index(["setup", "event"])
     rows.append(["tuned parameters, held-out passages", "; ".join(
-        f"{s}: completed {_rate(rates.loc[(s, 'completed')])}, collisions "
-        f"{_rate(rates.loc[(s, 'collision')])}"
+        f"{s}: completed {fmt.rate(rates.loc[(s, 'completed')])}, collisions "
+        f"{fmt.rate(rates.loc[(s, 'collision')])}"
         for s in dict.fromkeys(rates.index.get_level_values(0))) + ". " + _offered(presets),
         "`tuning_heldout_summary.csv`, `presets.json`"])
-    return markdown_table(["beyond the paper", "measured here", "table"], rows)
+    return fmt.markdown_table(["beyond the paper", "measured here", "table"], rows)
 
 
 def regeneration() -> str:
@@ -416,7 +458,7 @@ def regeneration() -> str:
             seconds = data.get("wall_time_s", data.get("wall_time_s_last_call"))
             wall = f"{seconds / 60:.1f} min" if seconds else "—"
         rows.append([f"`figures/{name}`" if name else "`figures/`", f"`{made_by}`", wall])
-    return markdown_table(["evidence set", "made by", "wall time (2 cores, last run)"], rows)
+    return fmt.markdown_table(["evidence set", "made by", "wall time (2 cores, last run)"], rows)
 
 
 def throughput() -> str:
@@ -429,7 +471,7 @@ def throughput() -> str:
              f"{r.steps:,}", f"{r.steps_per_s:,.0f}", f"{r.all_in_ms:.3f}",
              f"{r.median_ms:.2f} / {r.p99_ms:.2f} / {r.p999_ms:.2f} / {r.max_ms:.1f}",
              f"{r.over_ts:,} of {r.steps:,}"] for r in fam.itertuples()]
-    out = markdown_table(["scene family", "metric", "runs", "steps", "all-in steps/s",
+    out = fmt.markdown_table(["scene family", "metric", "runs", "steps", "all-in steps/s",
                           "ms per step", "controller call, median / p99 / p99.9 / max ms",
                           "calls over T_s"], rows)
     one = par.loc["1 worker"]
@@ -450,14 +492,14 @@ def throughput() -> str:
         parts = pd.read_csv(prof / "profile.csv")
         floors = pd.read_csv(prof / "floor.csv").set_index("part")
         floor, what = floors["ms_per_call"], floors["what"]
-        out += "\n\n" + markdown_table(
+        out += "\n\n" + fmt.markdown_table(
             ["part of a step (sampled)", "share", "ms per step"],
             [[r.part, f"{100 * r.share:.1f} %", f"{r.ms_per_step:.4f}"]
              for r in parts.itertuples()])
         share = parts.set_index("part")["ms_per_step"]
         compiled = share[["QP (C)", "linearisation (C)", "LiDAR", "plant"]].sum()
         step = float(parts["all_in_ms"].iloc[0])
-        out += ("\n\n" + markdown_table(["floor of a part, one call", "ms", "at"],
+        out += ("\n\n" + fmt.markdown_table(["floor of a part, one call", "ms", "at"],
                                           [[k, f"{v:.4f}", what[k]] for k, v in floor.items()])
                 + f"\n\nOn average over the profiled steps the compiled parts (the QP and the "
                 f"linearisation in C, the LiDAR's KD-tree, the plant) take {compiled:.3f} ms a "
@@ -532,62 +574,3 @@ def page_blocks() -> dict[str, tuple[Path, str]]:
                 raise ValueError(f"block {name!r} is in both {out[name][0]} and {page}")
             out[name] = (page, body)
     return out
-
-
-# --- formatting -----------------------------------------------------------------------------
-
-def markdown_table(header: list[str], rows: list[list]) -> str:
-    def cell(c) -> str:
-        return str(c).replace("|", "\\|")  # a bar inside a cell (|Δu|) must not split it
-
-    lines = ["| " + " | ".join(map(cell, header)) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(map(cell, row)) + " |" for row in rows]
-    return "\n".join(lines)
-
-
-def _share(x: float) -> str:
-    return f"{100 * x:.1f} %" if 0 < x < 0.01 else f"{100 * x:.0f} %"
-
-
-def _rate(r) -> str:
-    return _rate_of(r["rate"], r["low"], r["high"], int(r["k"]), int(r["n"]))
-
-
-def _rate_of(rate, low, high, k: int | None = None, n: int | None = None) -> str:
-    count = f"{k}/{n}, " if k is not None else ""
-    return f"{count}{100 * rate:.0f} % [{100 * low:.0f}, {100 * high:.0f}]"
-
-
-def _ratio(x: float) -> str:
-    return "—" if pd.isna(x) else f"×{x:.3g}"
-
-
-def _metres(x: float) -> str:
-    if pd.isna(x) or x == 0:
-        return "—"
-    if x < 0.01:
-        return f"{1e3 * x:.2g} mm"
-    return f"{100 * x:.2g} cm" if x < 1 else f"{x:.2g} m"
-
-
-def _ms(x: float) -> str:
-    """A time in ms: two significant digits, whole milliseconds from 10 ms."""
-    return f"{x:,.0f}" if x >= 10 else f"{x:.2g}"
-
-
-def _num(x: float) -> str:
-    return f"{x:,.0f}" if abs(x) >= 1000 else f"{x:.3g}"
-
-
-def _paired(table: pd.DataFrame, a: str, b: str) -> str:
-    """Paired effects (``analysis.paired``; its columns ``median_smooth`` and
-    ``median_euclidean`` hold the medians of ``a`` and ``b``)."""
-    rows = []
-    for r in table.itertuples():
-        effect = (f"×{_num(r.median_effect)} [{_num(r.low)}, {_num(r.high)}]"
-                  if r.effect.startswith("ratio")
-                  else f"{r.median_effect:+.3g} [{r.low:+.3g}, {r.high:+.3g}]")
-        rows.append([r.label, _num(r.median_smooth), _num(r.median_euclidean), effect,
-                     f"{r.wilcoxon_p:.2g}", f"{int(r.scenes)}"])
-    return markdown_table(["measure (median over scenes)", a, b, f"{b} vs {a}, per scene",
-                      "Wilcoxon p", "scenes"], rows)
