@@ -221,6 +221,7 @@ EVIDENCE_SETS = (
     "studies/sensing_window", "studies/moving_obstacles", "studies/moving_obstacles_definition",
     "studies/avoidability",  # benchmarks/avoidability.py --save
     "studies/moving_levers",  # benchmarks/moving_levers.py --save
+    "studies/guidance",  # study guidance
     "tuning",  # tune
 )
 """Every committed evidence set, as a folder under ``figures/``."""

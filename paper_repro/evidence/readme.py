@@ -435,6 +435,18 @@ def beyond() -> str:
         f"{fmt.rate(rates.loc[(s, 'collision')])}"
         for s in dict.fromkeys(rates.index.get_level_values(0))) + ". " + _offered(presets),
         "`tuning_heldout_summary.csv`, `presets.json`"])
+    guided = pd.read_csv(figs / "studies" / "guidance" / "guidance_rates.csv").set_index(
+        ["arm", "metric", "event"])
+    n = int(guided.loc[("paper", "smooth", "completed")].n)
+
+    def outcomes(arm: str) -> str:
+        return ", ".join(f"{label} {fmt.rate(guided.loc[(arm, 'smooth', event)])}"
+                         for event, label in (("completed", "completed"), ("stalled", "stalled"),
+                                              ("collision", "collisions")))
+
+    rows.append([f"deadlocks: a local map and a guide (`guide.planner`), {n} random passages",
+                 f"the paper's controller: {outcomes('paper')}; map + guide: "
+                 f"{outcomes('map+guide')} (smoothed D)", "`guidance_rates.csv`"])
     return fmt.markdown_table(["beyond the paper", "measured here", "table"], rows)
 
 
@@ -523,6 +535,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "throughput": throughput, "swept_pillar": swept_pillar,
     "monte_carlo": monte_carlo,
     "eta_sweep": eta_sweep, "sensor_noise": sensor_noise, "sensing_window": sensing_window,
+    "sensor_noise_cost": sensor_noise_cost, "guidance": guidance,
     "moving_obstacles": moving_obstacles, "avoidability": avoidability,
     "moving_levers": moving_levers, "timeline": timeline, "tuning": tuning,
     "beyond": beyond}
