@@ -162,9 +162,9 @@ def test_the_map_reader_maps_static_regions_and_passes_moving_ones_through():
 
     scene = make_scene("encounter")
     base = Config()
-    assert _map_reader(base, scene) is None  # the paper reads the raw scan
+    assert _map_reader(base, scene) == (None, None)  # the paper reads the raw scan
     cfg = dataclasses.replace(base, sensor=dataclasses.replace(base.sensor, map_voxel=0.5))
-    read = _map_reader(cfg, scene)
+    read, local_map = _map_reader(cfg, scene)
     n = len(scene.clouds)
     a = np.array([[1.0, 0.0, 0.0]])
     scan = [a] + [np.zeros((0, 3))] * (n - 1)
