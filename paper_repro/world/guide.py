@@ -118,6 +118,8 @@ class Guide:
         # Blocked cells near the vehicle are not counted against a segment that starts there:
         # the barrier keeps the vehicle about √(2·d_min) from a wall, inside the inflation.
         self._skip = self.inflation + math.sqrt(3.0) * self.cell / 2
+        near = int(math.ceil(self._skip / self.cell)) + 1  # the cells a plan may start from
+        self._near = np.array(list(itertools.product(range(-near, near + 1), repeat=3)))
         self.reset()
 
     def reset(self) -> None:
@@ -279,8 +281,7 @@ class Guide:
     def _nearest_free(self, p: np.ndarray, exact):
         """The goal's cell (``exact`` given: the free cell nearest it, as a flat number), or the
         vehicle's candidates: the free cells within reach of it and their distances to it."""
-        reach = int(math.ceil(self._skip / self.cell)) + 1
-        ijk = self._cell(p[None])[0] + self._stencil_of(reach)
+        ijk = self._cell(p[None])[0] + self._near
         ijk = ijk[self._inside(ijk)]
         flat = self._flat(ijk)
         free = ~self.blocked[flat]
@@ -291,9 +292,6 @@ class Guide:
             return int(flat[free][np.argmin(gaps)])
         near = gaps <= self._skip + self.cell
         return (flat[free][near], gaps[near]) if near.any() else None
-
-    def _stencil_of(self, reach: int) -> np.ndarray:
-        return np.array(list(itertools.product(range(-reach, reach + 1), repeat=3)))
 
     def _path_blocked(self) -> bool:
         """A newly blocked cell lies on the path still ahead."""
