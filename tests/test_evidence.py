@@ -54,6 +54,67 @@ def test_golden_json_is_the_hash_of_the_committed_files():
     stored = json.loads((paths.golden_dir() / "golden.json").read_text())
     assert set(stored["files"]) == {f.name for f in evidence.GOLDEN_FLIGHTS}
     assert evidence.recomputed_golden_hash() == stored["hash"] == evidence.golden_hash()
+    for layer in evidence.LAYERS[1:]:
+        assert (evidence.recomputed_golden_hash(layer) == stored["layers"][layer]
+                == evidence.golden_hash(layer) != evidence.golden_hash())
+
+
+def _rewrite_golden(folder, name):
+    """Move golden flight ``name`` by 1e-6 and rewrite golden.json as ``golden --write``
+    would."""
+    path = folder / f"{name}.npy"
+    np.save(path, np.load(path) + 1e-6)
+    files = {f.name: evidence.sha256_of(folder / f"{f.name}.npy")
+             for f in evidence.GOLDEN_FLIGHTS}
+    layers = {layer: evidence.set_hash(evidence._layer_files(files, layer))
+              for layer in evidence.LAYERS[1:]}
+    (folder / "golden.json").write_text(json.dumps(
+        {"hash": evidence.set_hash(evidence._layer_files(files, "")), "files": files,
+         "layers": layers}))
+
+
+def test_a_change_to_the_map_retires_only_what_uses_the_map(tmp_path, monkeypatch):
+    """The map's golden flight moved: the runs and evidence sets that read the map go stale,
+    the others keep their keys and stamps (nothing else needs flying again)."""
+    import dataclasses
+
+    shutil.copytree(paths.golden_dir(), tmp_path / "figures" / "golden")
+    monkeypatch.setenv(paths.ROOT_ENV, str(tmp_path))
+    mapped = dataclasses.replace(Config(), sensor=dataclasses.replace(Config().sensor,
+                                                                      map_voxel=0.5))
+    assert evidence.layer_of(Config()) == "" and evidence.layer_of(Config(), mapped) == "map"
+    core_set = tmp_path / "figures" / "studies" / "monte_carlo"
+    map_set = tmp_path / "figures" / "studies" / "guidance"
+    for folder, layer in ((core_set, ""), (map_set, "map")):
+        folder.mkdir(parents=True)
+        evidence.stamp(folder, "test", layer)
+    keys = run_key(Config(), 100, "fp"), run_key(mapped, 100, "fp")
+    assert not {"studies/monte_carlo", "studies/guidance"} & set(evidence.stale_evidence())
+    core = evidence.golden_hash()
+
+    map_flight = next(f.name for f in evidence.GOLDEN_FLIGHTS if f.layer == "map")
+    _rewrite_golden(tmp_path / "figures" / "golden", map_flight)
+    assert evidence.golden_hash() == core
+    assert run_key(Config(), 100, "fp") == keys[0]
+    assert run_key(mapped, 100, "fp") != keys[1]
+    stale = evidence.stale_evidence()
+    assert "studies/guidance" in stale and "studies/monte_carlo" not in stale
+
+
+def test_a_study_of_map_runs_stamped_with_the_core_hash_is_stale(tmp_path, monkeypatch):
+    shutil.copytree(paths.golden_dir(), tmp_path / "figures" / "golden")
+    monkeypatch.setenv(paths.ROOT_ENV, str(tmp_path))
+    study = tmp_path / "figures" / "studies" / "guidance"
+    study.mkdir(parents=True)
+    meta = {"golden": evidence.golden_hash(), "base_config": Config().to_dict(),
+            "specs": [{"config_changes": {}}, {"config_changes": {"sensor.map_voxel": 0.5}}]}
+    (study / "study.json").write_text(json.dumps(meta, default=str))
+    evidence.stamp(study, "test")
+    assert "studies/guidance" in evidence.stale_evidence()
+    meta["golden"] = evidence.golden_hash("map")
+    (study / "study.json").write_text(json.dumps(meta, default=str))
+    evidence.stamp(study, "test", "map")
+    assert "studies/guidance" not in evidence.stale_evidence()
 
 
 def test_every_committed_evidence_set_was_made_with_the_current_golden_flights():
@@ -91,12 +152,7 @@ def test_a_stamp_goes_stale_when_the_golden_set_changes(tmp_path, monkeypatch):
     key = run_key(Config(), 100, "fp")
 
     # A flight moved: one golden file rewritten, golden.json with it.
-    path = tmp_path / "figures" / "golden" / "paper-smooth.npy"
-    np.save(path, np.load(path) + 1e-6)
-    files = {f.name: evidence.sha256_of(tmp_path / "figures" / "golden" / f"{f.name}.npy")
-             for f in evidence.GOLDEN_FLIGHTS}
-    (tmp_path / "figures" / "golden" / "golden.json").write_text(
-        json.dumps({"hash": evidence.set_hash(files), "files": files}))
+    _rewrite_golden(tmp_path / "figures" / "golden", "paper-smooth")
     assert evidence.golden_hash() != before
     assert "studies/monte_carlo" in evidence.stale_evidence()
     assert run_key(Config(), 100, "fp") != key  # every cached run is retired with it

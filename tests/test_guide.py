@@ -178,3 +178,18 @@ def test_the_map_alone_does_not_move_the_set_point():
     result = simulate(dataclasses.replace(passage_config(cfg, 24), simulation=dataclasses.replace(
         passage_config(cfg, 24).simulation, max_steps=50)), progress=False)
     assert result.set_points is None
+
+
+def test_a_plan_weighs_the_edges_as_if_from_scratch():
+    """The edge weights a plan hands Dijkstra are kept from the last plan and brought up to
+    date only at the cells blocked or freed since: they must equal the weights made from
+    scratch (inf into or out of a blocked cell, the edge's length otherwise)."""
+    guide = Guide(np.array([-2.5, -2.5, 0.0]), np.array([12.5, 10.5, 8.0]))
+    rng = np.random.default_rng(1)
+    assert np.array_equal(guide._rows[guide._reverse], guide._cols)
+    assert np.array_equal(guide._cols[guide._reverse], guide._rows)
+    for share in (0.05, 0.3, 0.1, 0.0, 0.2):
+        guide.blocked[:] = rng.random(guide.blocked.size) < share
+        scratch = np.where(guide.blocked[guide._rows] | guide.blocked[guide._cols], np.inf,
+                           guide._lengths)
+        assert np.array_equal(guide._edge_weights(), scratch)

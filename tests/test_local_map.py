@@ -49,12 +49,52 @@ def test_a_confirmed_voxel_survives_dropouts_and_is_cleared_once_seen_empty():
     point = [np.array([[1.0, 0.2, 0.3]])]
     for k in range(20):
         m.update(point, np.zeros(3), 0.01 * k)
-    survives = math.floor((m.clamp[1] - m.occupied) / -m.miss)
+    survives = math.floor((m.clamp[1] - m.release) / -m.miss)
+    assert survives == 20
     for k in range(survives):  # the return is dropped this many scans in a row
         m.update(EMPTY, np.zeros(3), 1.0 + 0.01 * k)
         assert m.occupied_mask.sum() == 1
     m.update(EMPTY, np.zeros(3), 2.0)
     assert not m.occupied_mask.any()
+
+
+def test_an_occupied_voxel_is_released_below_release_not_below_occupied():
+    # Hits and misses that balance near the threshold: with the hysteresis the voxel stays in
+    # the controller's set; without it (release = occupied) it leaves and enters again.
+    point = [np.array([[1.0, 0.2, 0.3]])]
+    changes = {}
+    for release in (-1.0, 2.0):
+        m, state, flips = VoxelMap(release=release), False, 0
+        # 3 hits (L = 2.55), 3 misses (1.8), then cycles of 5 hits and 17 misses
+        # (5 × 0.85 = 17 × 0.25): L swings about 2, across the threshold at every hit
+        cycle = [True, False, False, False] * 4 + [True] + [False] * 5
+        pattern = [True] * 3 + [False] * 3 + cycle * 20
+        for k, hit in enumerate(pattern):
+            m.update(point if hit else EMPTY, np.zeros(3), 0.01 * k)
+            now = bool(m.occupied_mask.any())
+            flips += now != state
+            state = now
+        changes[release] = flips
+    assert changes[-1.0] == 1  # entered once, never left
+    assert changes[2.0] >= 20
+
+
+def test_the_returns_of_a_point_on_a_voxel_face_make_one_point():
+    # A point on the face x = 1.0 between two 0.5 m voxels, seen with 5 cm range noise: its
+    # returns fall on both sides. Associated with the nearest representative they make one
+    # point; counted by the voxel they fall in, two.
+    rng = np.random.default_rng(4)
+    true = np.array([1.0, 0.2, 0.3])
+    counts = {}
+    for merge in (0.2, 0.0):
+        m = VoxelMap(merge_radius=merge)
+        for k in range(300):
+            m.update([true + rng.normal(0.0, 0.05, (1, 3))], np.zeros(3), 0.01 * k)
+        mapped = m.regions(np.zeros(3), 3.0, 1)[0]
+        counts[merge] = len(mapped)
+        if merge:
+            assert np.linalg.norm(mapped[0] - true) < 0.02  # the mean of 300 returns
+    assert counts == {0.2: 1, 0.0: 2}
 
 
 def test_a_noisy_lidar_with_dropouts_keeps_the_wall_and_averages_its_noise():
@@ -129,7 +169,9 @@ def test_excluded_regions_stay_out_and_regions_keep_their_labels():
     ({"voxel": 0.0}, "voxel"), ({"miss": 0.1}, "miss"), ({"occupied": 0.5}, "occupied"),
     ({"clamp_high": 1.0}, "clamp_high"), ({"keep_radius": 2.0}, "keep_radius"),
     ({"max_voxels": 0}, "max_voxels"), ({"max_age": 0.0}, "max_age"),
-    ({"mean_window": 0}, "mean_window")])
+    ({"mean_window": 0}, "mean_window"), ({"release": 3.0}, "release"),
+    ({"release": -3.0}, "release"), ({"merge_radius": 0.5}, "merge_radius"),
+    ({"merge_radius": -0.1}, "merge_radius")])
 def test_bad_parameters_are_named(kwargs, word):
     with pytest.raises(ValueError, match=word):
         VoxelMap(**kwargs)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from paper_repro.evidence.golden import (
     GOLDEN_FLIGHTS,
+    LAYERS,
     check_golden,
     golden_hash,
     stale_evidence,
@@ -25,7 +26,8 @@ def main(args) -> int:
         extra = " (written)" if row.get("written") else ""
         print(f"{row['name']:28s} {row['steps']:>10s}  position {row['position_error']:.3g} m"
               f"  input {row['input_error']:.3g}  {state}{extra}")
-    print(f"golden hash {golden_hash()}")
+    print(f"golden hash {golden_hash()}" + "".join(
+        f", layer {layer!r} {golden_hash(layer)}" for layer in LAYERS if layer))
     stale = stale_evidence()
     if stale:
         print("evidence sets made with another golden set (regenerate them): "

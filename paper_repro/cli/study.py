@@ -48,7 +48,7 @@ def add_arguments(parser) -> None:
 def main(args) -> int:
     """Run ``python -m paper_repro study``: the study (cached runs are only loaded), its table,
     then its notebook, which draws the figures from the saved table."""
-    from paper_repro.evidence.golden import command_line, stamp
+    from paper_repro.evidence.golden import command_line, layer_of, stamp
     from paper_repro.presets import DEFAULT, preset
 
     study = make_study(args.name, quick=args.quick, base=preset(args.preset),
@@ -72,5 +72,5 @@ def main(args) -> int:
         print(f"notebook {notebook}: figures in {result.directory} "
               f"({duration(time.perf_counter() - t0)})", flush=True)
         # Last, once the table and every figure are in place: the set is this code's.
-        stamp(result.directory, command_line())
+        stamp(result.directory, command_line(), layer_of(*(s.config for s in study.specs)))
     return 0

@@ -5,8 +5,9 @@ makes. Two things enforce it.
 
 * **Golden flights** (:data:`GOLDEN_FLIGHTS`): a few short canonical closed loops (the paper
   mission with each metric, the encounter with each metric, a random passage, the moving
-  ``crossing``, the IPOPT reference at one instant-rich window, the ground robot). Their
-  states and inputs are committed in ``figures/golden/<name>.npy`` and
+  ``crossing``, the IPOPT reference at one instant-rich window, the ground robot, and, in
+  the ``"map"`` layer (:data:`LAYERS`), the noisy LiDAR through the local map with the
+  guide). Their states and inputs are committed in ``figures/golden/<name>.npy`` and
   ``figures/golden/golden.json`` holds the SHA-256 of each file and of the whole set, the
   *golden hash*. ``tests/test_evidence.py`` flies them and compares against the committed
   arrays (:func:`check_golden`, :data:`POSITION_TOLERANCE`): a change of code that moves a
@@ -18,7 +19,9 @@ makes. Two things enforce it.
   current golden hash, so after ``python -m paper_repro golden --write`` every evidence set
   must be regenerated too, in the same submission. The golden hash also enters every run's
   cache key (:func:`paper_repro.studies.runs.run_key`), so regenerating the golden flights retires
-  every cached run and nothing stale is ever redrawn.
+  every cached run and nothing stale is ever redrawn. A layer's flights enter only the hash
+  of that layer: the runs and sets that read the local map carry the ``"map"`` hash, so a
+  change to the map retires them and leaves every other run and set as it is.
 
 A pure refactor leaves every golden flight within tolerance: the committed files, the hash,
 the stamps and the cache keys stay as they are, and nothing needs re-flying.
@@ -62,6 +65,8 @@ class GoldenFlight:
     start : ``(other flight, step)``: start from the state that flight reached at that step
         (a window rich in obstacles, flown with a slow solver); ``None``: the scene's start.
     vehicle : ``"quadrotor"`` or ``"unicycle"`` (the ground robot's planar L-wall).
+    layer : ``""`` (the core) or ``"map"``: the noisy LiDAR read through the local map, with
+        the guide (:data:`LAYERS`).
     """
 
     name: str
@@ -76,6 +81,7 @@ class GoldenFlight:
     line_search: bool = False
     start: tuple[str, int] | None = None
     vehicle: str = "quadrotor"
+    layer: str = ""
 
     def config(self):
         """The :class:`~paper_repro.config.Config` this flight flies."""
@@ -93,6 +99,13 @@ class GoldenFlight:
                                                kind=self.kind, seed=self.seed,
                                                max_steps=self.steps),
                 nmpc=dataclasses.replace(cfg.nmpc, prediction=self.prediction))
+        if self.layer == "map":
+            from paper_repro.config import GuideParams
+            from paper_repro.world.lidar import NOISY_LIDAR
+            from paper_repro.world.local_map import MAP_VOXEL
+
+            cfg = dataclasses.replace(cfg, guide=GuideParams(planner="grid"), sensor=(
+                dataclasses.replace(NOISY_LIDAR, seed=self.seed, map_voxel=MAP_VOXEL)))
         return dataclasses.replace(cfg, solver=dataclasses.replace(
             cfg.solver, nlp_solver=self.solver, line_search=self.line_search))
 
@@ -117,7 +130,23 @@ GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
                  line_search=True),
     GoldenFlight("ground-robot-smooth", "the unicycle round the L-wall (another vehicle, "
                  "another output dimension)", steps=200, vehicle="unicycle"),
+    GoldenFlight("passage-map-guide-noisy-s000", "the noisy LiDAR read through the local map "
+                 "(hits, misses, association, hysteresis), and the guide's plans and "
+                 "set-points, on a random passage where the paper's controller stalls",
+                 scenario="random", kind="passage", seed=0, steps=1500, layer="map"),
 )
+
+LAYERS = ("", "map")
+"""The layers of the golden flights. The core (``""``) covers what every run flies; the
+``"map"`` layer covers the local map and the guide (``sensor.map_voxel`` > 0), which only
+some runs use. A run's cache key and an evidence set's stamp hold the golden hash of the
+layer they use (:func:`golden_hash`, :func:`layer_of`): a change to the map retires the
+cached runs and stamps that use the map, and leaves the others as they are."""
+
+
+def layer_of(*configs) -> str:
+    """The golden layer runs of ``configs`` use: ``"map"`` when any reads the local map."""
+    return "map" if any(c.sensor.map_voxel > 0 for c in configs) else ""
 
 
 def fly_golden(flight: GoldenFlight, flown: dict | None = None) -> np.ndarray:
@@ -184,28 +213,41 @@ def write_golden(names=None, force: bool = False) -> list[dict]:
             row["written"] = True
     files = {f.name: sha256_of(folder / f"{f.name}.npy") for f in GOLDEN_FLIGHTS
              if (folder / f"{f.name}.npy").is_file()}
-    payload = {"hash": set_hash(files), "files": files,
+    payload = {"hash": set_hash(_layer_files(files, "")), "files": files,
+               "layers": {layer: set_hash(_layer_files(files, layer))
+                          for layer in LAYERS if layer},
                "position_tolerance_m": POSITION_TOLERANCE, "input_tolerance": INPUT_TOLERANCE,
                "flights": {f.name: f.description for f in GOLDEN_FLIGHTS}}
     _atomic_text(folder / "golden.json", json.dumps(payload, indent=1) + "\n")
     return rows
 
 
-def golden_hash() -> str:
-    """The committed golden hash (``figures/golden/golden.json``), or ``"none"`` before the
-    golden flights exist."""
+def golden_hash(layer: str = "") -> str:
+    """The committed golden hash of ``layer`` (:data:`LAYERS`; ``figures/golden/golden.json``):
+    the core flights' for ``""``, the core's and the layer's together for another, or
+    ``"none"`` before the golden flights exist."""
+    if layer not in LAYERS:
+        raise ValueError(f"layer must be one of {LAYERS}, got {layer!r}")
     path = golden_dir() / "golden.json"
     if not path.is_file():
         return "none"
-    return json.loads(path.read_text())["hash"]
+    stored = json.loads(path.read_text())
+    return stored["layers"][layer] if layer else stored["hash"]
 
 
-def recomputed_golden_hash() -> str:
-    """The golden hash computed from the committed ``.npy`` files (equal to
+def recomputed_golden_hash(layer: str = "") -> str:
+    """The golden hash of ``layer`` computed from the committed ``.npy`` files (equal to
     :func:`golden_hash` unless a file was changed by hand)."""
     folder = golden_dir()
-    return set_hash({f.name: sha256_of(folder / f"{f.name}.npy") for f in GOLDEN_FLIGHTS
-                      if (folder / f"{f.name}.npy").is_file()})
+    return set_hash(_layer_files({f.name: sha256_of(folder / f"{f.name}.npy")
+                                  for f in GOLDEN_FLIGHTS
+                                  if (folder / f"{f.name}.npy").is_file()}, layer))
+
+
+def _layer_files(files: dict, layer: str) -> dict:
+    """The files of the core flights and, for a layer, of that layer's flights too."""
+    wanted = {f.name for f in GOLDEN_FLIGHTS if f.layer in ("", layer)}
+    return {name: digest for name, digest in files.items() if name in wanted}
 
 
 EVIDENCE_SETS = (
@@ -227,11 +269,15 @@ EVIDENCE_SETS = (
 """Every committed evidence set, as a folder under ``figures/``."""
 
 
-def stamp(folder, made_by: str) -> Path:
-    """Write ``folder/evidence.json``: the golden hash the set was made with, and the
-    command that made it. Call it last, after every file of the set is written."""
+def stamp(folder, made_by: str, layer: str = "") -> Path:
+    """Write ``folder/evidence.json``: the golden hash of ``layer`` (:data:`LAYERS`: the
+    layer the set's runs use) the set was made with, and the command that made it. Call it
+    last, after every file of the set is written."""
     out = Path(folder) / "evidence.json"
-    text = json.dumps({"golden": golden_hash(), "made_by": made_by}, indent=1) + "\n"
+    record = {"golden": golden_hash(layer), "made_by": made_by}
+    if layer:
+        record["layer"] = layer
+    text = json.dumps(record, indent=1) + "\n"
     _atomic_text(out, text)
     return out
 
@@ -251,13 +297,38 @@ def stamped_hash(folder) -> str | None:
     return json.loads(path.read_text())["golden"] if path.is_file() else None
 
 
+def stamped_layer(folder) -> str:
+    """The golden layer recorded in ``folder/evidence.json`` (``""``, the core, by default)."""
+    path = Path(folder) / "evidence.json"
+    return json.loads(path.read_text()).get("layer", "") if path.is_file() else ""
+
+
 def stale_evidence() -> list[str]:
     """The evidence sets present in ``figures/`` whose stamp is missing or differs from the
-    golden hash (a set that is not there is missing, not stale: it shows nothing)."""
-    current = golden_hash()
-    return [name or "figures" for name in EVIDENCE_SETS
-            if (paths.figures_dir() / name).is_dir()
-            and stamped_hash(paths.figures_dir() / name) != current]
+    golden hash of its layer, or whose ``study.json`` was made with another (the engine
+    writes there the hash of the layer its runs use, so a study of map runs stamped with the
+    core's hash is stale). A set that is not there is missing, not stale: it shows
+    nothing."""
+    stale = []
+    for name in EVIDENCE_SETS:
+        folder = paths.figures_dir() / name
+        if not folder.is_dir():
+            continue
+        layer, study = stamped_layer(folder), folder / "study.json"
+        meta = json.loads(study.read_text()) if study.is_file() else None
+        if (layer not in LAYERS or stamped_hash(folder) != golden_hash(layer)
+                or meta is not None and (_study_layer(meta) != layer
+                                         or meta["golden"] != golden_hash(layer))):
+            stale.append(name or "figures")
+    return stale
+
+
+def _study_layer(meta: dict) -> str:
+    """The golden layer a study's runs use, from its ``study.json``: ``"map"`` when its base
+    or any run reads the local map."""
+    voxels = [meta["base_config"].get("sensor", {}).get("map_voxel", 0.0)]
+    voxels += [spec["config_changes"].get("sensor.map_voxel", 0.0) for spec in meta["specs"]]
+    return "map" if any(v > 0 for v in voxels) else ""
 
 
 def sha256_of(path: Path) -> str:

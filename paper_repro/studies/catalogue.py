@@ -8,9 +8,11 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from paper_repro.config import PREDICTIONS, Config, GuideParams, SensorParams
+from paper_repro.config import PREDICTIONS, Config, GuideParams
 from paper_repro.studies.runs import RunSpec
 from paper_repro.validation import require_int
+from paper_repro.world.lidar import NOISY_LIDAR
+from paper_repro.world.local_map import MAP_VOXEL
 
 PASSAGE_STEPS = 15_000
 """Step limit of a passage (150 s of flight): about three times the 40-60 s a passage takes, so
@@ -138,14 +140,6 @@ def eta_sweep(quick: bool = False, scenes: int | None = None, etas: Sequence[flo
                  "passages")
 
 
-NOISY_LIDAR = SensorParams(range_noise=0.05, dropout=0.2, spurious_rate=2.0)
-"""The sensor of :func:`sensor_noise`: 5 cm range noise (1σ), one point in five lost, two
-spurious returns per scan on average; seeded per scene."""
-
-
-MAP_VOXEL = 0.5
-"""Voxel side (m) of the local map the studies fly (``sensor.map_voxel``): below the clouds'
-0.7 m spacing, so that a wall stays a wall of points."""
 
 
 def with_map(config: Config) -> Config:

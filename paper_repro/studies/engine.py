@@ -265,7 +265,7 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
       brought up to date, as when the cache has been re-keyed.
 
     :func:`load_table` joins the two again."""
-    from paper_repro.evidence.golden import golden_hash
+    from paper_repro.evidence.golden import golden_hash, layer_of
     from paper_repro.sim.result import run_metadata
 
     flight, timings = metrics.split_timings(table, TIMING_COLUMNS)
@@ -284,7 +284,8 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
     # out, as before they existed); the changes against the whole base.
     base = study.specs[0].config.to_dict()
     meta = {"name": study.name, "description": study.description,
-            "runs": len(study.specs), "golden": golden_hash(),
+            "runs": len(study.specs),
+            "golden": golden_hash(layer_of(*(s.config for s in study.specs))),
             "base_config": study.specs[0].config.key_dict(),
             "specs": [{"name": s.name, "key": s.key, "max_steps": s.max_steps,
                        "labels": dict(s.labels),

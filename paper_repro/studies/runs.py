@@ -85,11 +85,12 @@ class RunSpec:
 
 def run_key(config: Config, max_steps: int, scene_fingerprint: str) -> str:
     """SHA-256 (hex) of a run: ``config.key_dict()`` (:data:`~paper_repro.config_history.ADDED`),
-    ``max_steps``, the scene fingerprint and the golden hash (the code's behaviour)."""
-    from paper_repro.evidence.golden import golden_hash
+    ``max_steps``, the scene fingerprint and the golden hash of the layer the run uses
+    (:func:`~paper_repro.evidence.golden.layer_of`: the code's behaviour)."""
+    from paper_repro.evidence.golden import golden_hash, layer_of
 
     return _hash({"config": config.key_dict(), "max_steps": int(max_steps),
-                  "scene": scene_fingerprint, "golden": golden_hash()})
+                  "scene": scene_fingerprint, "golden": golden_hash(layer_of(config))})
 
 
 def rekey(results_dir=None) -> dict:
@@ -110,11 +111,11 @@ def rekey(results_dir=None) -> dict:
 
     Returns the counts ``{"moved", "current", "unproven", "duplicate", "damaged"}``.
     """
-    from paper_repro.evidence.golden import golden_hash
+    from paper_repro.evidence.golden import golden_hash, layer_of
     from paper_repro.sim.result import DamagedResult, verify_result, write_manifest
 
     root = Path(results_dir) if results_dir is not None else paths.results_dir() / "runs"
-    golden, default_steps = golden_hash(), Config().simulation.max_steps
+    default_steps = Config().simulation.max_steps
     counts = {"moved": 0, "current": 0, "unproven": 0, "duplicate": 0, "damaged": 0}
     for d in sorted(p for p in root.iterdir() if p.is_dir()) if root.is_dir() else ():
         name, _, key = d.name.rpartition("-")
@@ -128,6 +129,7 @@ def rekey(results_dir=None) -> dict:
         payload = json.loads((d / "config.json").read_text())
         saved, scene = payload["config"], payload["scene"]["fingerprint"]
         steps = saved["simulation"]["max_steps"]
+        golden = golden_hash(layer_of(Config.from_dict(saved)))
         written = None
         for spec_steps in dict.fromkeys((steps, default_steps)):
             candidate = json.loads(json.dumps(saved))

@@ -126,6 +126,9 @@ class Guide:
         """Forget the map, the path and the set-point (a new flight)."""
         self.blocked = np.zeros(int(np.prod(self.shape)), bool)
         self.avoid = np.zeros_like(self.blocked)  # cells the vehicle got stuck in front of
+        # The edge weights of the last plan (inf into or out of a blocked cell), and the
+        # blocked cells they were made for: a plan updates only the edges of changed cells.
+        self._weights, self._weighted = self._lengths.copy(), self.blocked.copy()
         self.trail = deque()                 # (t, y) of the checks over the last stuck_time
         self.mapped = np.zeros(0, np.int64)  # map keys behind ``blocked``, sorted
         self.path = None                     # (m, 3) points, the goal last
@@ -190,6 +193,10 @@ class Guide:
         graph.sort_indices()
         self._indptr, self._cols, self._lengths = graph.indptr, graph.indices, graph.data
         self._rows = np.repeat(np.arange(n), np.diff(graph.indptr))
+        # The lattice is symmetric: edge e = (u, v) has the reverse (v, u). Sorted by (v, u),
+        # the edges come in the order of their reverses sorted by (u, v).
+        self._reverse = np.empty_like(self._cols)
+        self._reverse[np.lexsort((self._rows, self._cols))] = np.arange(len(self._cols))
 
     def _cell(self, points: np.ndarray) -> np.ndarray:
         """(k, 3) integer cell indices of (k, 3) points (not clipped)."""
@@ -258,9 +265,8 @@ class Guide:
         goal_cell = self._nearest_free(self.goal, self.goal)
         origin = self._nearest_free(y, None) if goal_cell is not None else None
         if origin is not None:
-            weights = np.where(self.blocked[self._rows] | self.blocked[self._cols], np.inf,
-                               self._lengths)
-            graph = csr_matrix((weights, self._cols, self._indptr), shape=(len(self.blocked),) * 2)
+            graph = csr_matrix((self._edge_weights(), self._cols, self._indptr),
+                               shape=(len(self.blocked),) * 2)
             dist, pred = dijkstra(graph, directed=True, indices=int(goal_cell),
                                   return_predecessors=True)
             candidates, gaps = origin
@@ -277,6 +283,20 @@ class Guide:
                 self.remaining = np.append(dist[chain] + tail, 0.0)
         self.stats["plans"] += 1
         self.stats["plan_s"] += time.perf_counter() - start
+
+    def _edge_weights(self) -> np.ndarray:
+        """Each edge's length, inf into or out of a blocked cell: the last plan's weights,
+        with the edges of the cells blocked or freed since brought up to date."""
+        changed = np.flatnonzero(self.blocked != self._weighted)
+        if len(changed):
+            starts, counts = self._indptr[changed], np.diff(self._indptr)[changed]
+            out = np.repeat(starts - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
+            edges = np.concatenate([out, self._reverse[out]])
+            self._weights[edges] = np.where(
+                self.blocked[self._rows[edges]] | self.blocked[self._cols[edges]], np.inf,
+                self._lengths[edges])
+            self._weighted = self.blocked.copy()
+        return self._weights
 
     def _nearest_free(self, p: np.ndarray, exact):
         """The goal's cell (``exact`` given: the free cell nearest it, as a flat number), or the

@@ -14,6 +14,12 @@ from paper_repro.world.scene import checked_motions, cloud_array
 
 # --- LiDAR ----------------------------------------------------------------------------------
 
+NOISY_LIDAR = SensorParams(range_noise=0.05, dropout=0.2, spurious_rate=2.0)
+"""The noisy sensor of the sensor-noise study (and of the map's golden flight): 5 cm range
+noise (1σ), one point in five lost, two spurious returns per scan on average; seeded per
+scene."""
+
+
 class Lidar:
     """Virtual spherical LiDAR of range r_s (m) over a scene's clouds, perfect or imperfect.
 
