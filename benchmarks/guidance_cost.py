@@ -3,8 +3,9 @@
     python benchmarks/guidance_cost.py --passages 5 [--save]
 
 Flies the first ``--passages`` random passages of the ``guidance`` study with the smoothed
-metric, in one process: with the map and the guide (perfect LiDAR), and with the map alone on
-the noisy LiDAR of the sensor-noise study. The map's update and read-out
+metric, in one process: with the map and the guide (perfect LiDAR, as the guidance study
+flies), with the map alone on the noisy LiDAR of the sensor-noise study, and with both on the
+noisy LiDAR. The map's update and read-out
 (:class:`~paper_repro.world.local_map.VoxelMap` ``update`` and ``regions``) and the guide
 (:meth:`~paper_repro.world.guide.Guide.set_point`, its plans included) are timed around each
 call, and their sums are divided by the steps flown: the cost per step, the planner
@@ -81,8 +82,10 @@ def main(argv=None) -> None:
     if args.passages < 1:
         parser.error(f"--passages must be >= 1, got {args.passages}")
     spent = timed_parts()
+    noisy = dataclasses.replace(Config(), sensor=NOISY_LIDAR)
     setups = {"map + guide, perfect LiDAR": with_guide(Config()),
-              "map, noisy LiDAR": with_map(dataclasses.replace(Config(), sensor=NOISY_LIDAR))}
+              "map, noisy LiDAR": with_map(noisy),
+              "map + guide, noisy LiDAR": with_guide(noisy)}
     rows = []
     simulate(passage_config(setups["map + guide, perfect LiDAR"], 0), max_steps=50,
              progress=False)  # builds and warms the compiled parts

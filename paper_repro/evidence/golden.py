@@ -264,6 +264,7 @@ EVIDENCE_SETS = (
     "studies/avoidability",  # benchmarks/avoidability.py --save
     "studies/moving_levers",  # benchmarks/moving_levers.py --save
     "studies/guidance",  # study guidance
+    "guidance_cost",  # benchmarks/guidance_cost.py --save
     "tuning",  # tune
 )
 """Every committed evidence set, as a folder under ``figures/``."""

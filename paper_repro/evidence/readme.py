@@ -243,6 +243,18 @@ def guidance() -> str:
                                "time to complete (median)"], rows)
 
 
+def guidance_cost() -> str:
+    """``figures/guidance_cost/cost.csv``: what the map and the guide cost per closed-loop
+    step, on this machine (``benchmarks/guidance_cost.py``)."""
+    table = pd.read_csv(paths.figures_dir() / "guidance_cost" / "cost.csv")
+    rows = [[r.setup, f"{int(r.passages)}", f"{int(r.steps):,}", fmt.ms(r.all_in_ms),
+             fmt.ms(r.controller_ms), fmt.ms(r.map_update_ms), fmt.ms(r.map_readout_ms),
+             fmt.ms(r.guide_ms), fmt.ms(r.map_and_guide_ms)] for r in table.itertuples()]
+    return fmt.markdown_table(["set-up", "passages", "steps", "all-in step, ms",
+                               "controller, ms", "map update, ms", "map read-out, ms",
+                               "guide, ms", "map and guide, ms"], rows)
+
+
 def sensing_window() -> str:
     """``figures/studies/sensing_window/``: the paper mission with and without the window
     (``sensing_window_mission.csv``), then the passages, one row per width
@@ -401,7 +413,8 @@ def _offered(presets: dict) -> str:
 def beyond() -> str:
     """Beyond the paper, for the README: the moving crossings with the paper's barrier and the
     design (``moving_obstacles_rates.csv``), whether they were avoidable (``avoidability.csv``),
-    and the tuning's held-out passages."""
+    the tuning's held-out passages, the guide past the deadlocks (``guidance_rates.csv``) and
+    the noisy LiDAR through the map (``sensor_noise_cost.csv``)."""
     import json
 
     figs = paths.figures_dir()
@@ -447,6 +460,17 @@ def beyond() -> str:
     rows.append([f"deadlocks: a local map and a guide (`guide.planner`), {n} random passages",
                  f"the paper's controller: {outcomes('paper')}; map + guide: "
                  f"{outcomes('map+guide')} (smoothed D)", "`guidance_rates.csv`"])
+    cost = pd.read_csv(figs / "studies" / "sensor_noise" / "sensor_noise_cost.csv").set_index(
+        ["metric", "sensor", "measure"])
+    hf = {s: cost.loc[("smooth", s, "hf_energy_fraction")] for s in ("noisy", "noisy-map")}
+    tv = cost.loc[("smooth", "noisy-map", "tv_u_rate_N_per_s")]
+    rows.append([f"a noisy LiDAR through the local map ({int(tv.scenes)} passages)",
+                 f"smoothed D, share of thrust power above 5 Hz: perfect LiDAR "
+                 f"{fmt.num(hf['noisy'].median_perfect)}, noisy raw scan "
+                 f"{fmt.num(hf['noisy'].median_sensor)}, noisy through the map "
+                 f"{fmt.num(hf['noisy-map'].median_sensor)}; total variation through the map "
+                 f"×{fmt.num(tv.median_effect)} [{fmt.num(tv.low)}, {fmt.num(tv.high)}] the "
+                 "perfect sensor's, per passage", "`sensor_noise_cost.csv`"])
     return fmt.markdown_table(["beyond the paper", "measured here", "table"], rows)
 
 
@@ -523,7 +547,8 @@ def throughput() -> str:
 
 
 MACHINE_BLOCKS = frozenset({"regeneration", "ground_robot", "solver_speed_encounter",
-                            "solver_speed_crossing", "throughput", "swept_pillar"})
+                            "solver_speed_crossing", "throughput", "swept_pillar",
+                            "guidance_cost"})
 """Blocks quoting what the machine measured: rendered like the others, never asserted (they
 change with every regeneration)."""
 
@@ -536,6 +561,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "monte_carlo": monte_carlo,
     "eta_sweep": eta_sweep, "sensor_noise": sensor_noise, "sensing_window": sensing_window,
     "sensor_noise_cost": sensor_noise_cost, "guidance": guidance,
+    "guidance_cost": guidance_cost,
     "moving_obstacles": moving_obstacles, "avoidability": avoidability,
     "moving_levers": moving_levers, "timeline": timeline, "tuning": tuning,
     "beyond": beyond}

@@ -205,8 +205,8 @@ class VoxelMap:
         if self._n + len(points) > self._cap:
             self._room(max(2 * self._cap, self._n + len(points)))
         n = _library().voxel_map_update(
-            self._n, self._cap, *self._pointers.values(), len(points), points.ctypes.data, labels.ctypes.data, p.ctypes.data, float(t),
-            self._params.ctypes.data)
+            self._n, self._cap, *self._pointers.values(), len(points), points.ctypes.data,
+            labels.ctypes.data, p.ctypes.data, float(t), self._params.ctypes.data)
         if n < 0:
             raise MemoryError("the voxel map's update could not allocate its workspace")
         self._n = n
