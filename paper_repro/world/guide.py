@@ -51,6 +51,7 @@ A :class:`Guide` is plain numpy and scipy; its cost is reported by ``stats``.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import time
@@ -135,7 +136,7 @@ class Guide:
         self.remaining = None                # (m,) m, path length from each point to the goal
         self.progress = 0                    # index of the path point the vehicle is at
         self.ahead = None                    # index of the look-ahead point (None: the goal)
-        self.goal = None
+        self.goal, self._goal = None, None
         self.point = None                    # the set-point handed over, (3,)
         self.aim = None                      # the look-ahead point (or the goal), (3,)
         self.want = None                     # horizontal unit direction of the aim, (2,)
@@ -153,9 +154,9 @@ class Guide:
         ``goal`` ((3,), m), from ``local_map`` (a :class:`~paper_repro.world.local_map.VoxelMap`).
         Between checks it is the previous one."""
         goal = np.asarray(goal, float)
-        if self.goal is None or not np.array_equal(goal, self.goal):
+        if self.goal is None or goal.tolist() != self._goal:  # as np.array_equal, cheaper
             self.goal, self.path, self.point = goal.copy(), None, goal.copy()
-            self.want, self.next_plan = None, -math.inf
+            self.want, self.next_plan, self._goal = None, -math.inf, goal.tolist()
         if t < self.next_check:
             return self.point
         self.next_check = t + self.check_period
@@ -177,26 +178,10 @@ class Guide:
     # --- the grid ---------------------------------------------------------------------------
 
     def _lattice(self) -> None:
-        """The 26-connected lattice of every cell, once: CSR rows, columns, edge lengths."""
-        index = np.arange(int(np.prod(self.shape))).reshape(self.shape)
-        rows, cols, lengths = [], [], []
-        for d in _NEIGHBOURS:
-            src = tuple(slice(max(0, -o), n - max(0, o)) for o, n in zip(d, self.shape))
-            dst = tuple(slice(max(0, o), n + min(0, o)) for o, n in zip(d, self.shape))
-            rows.append(index[src].ravel())
-            cols.append(index[dst].ravel())
-            lengths.append(np.full(rows[-1].size, self.cell * float(np.linalg.norm(
-                d * (1.0, 1.0, self.climb)))))
-        n = index.size
-        graph = csr_matrix((np.concatenate(lengths), (np.concatenate(rows),
-                                                      np.concatenate(cols))), shape=(n, n))
-        graph.sort_indices()
-        self._indptr, self._cols, self._lengths = graph.indptr, graph.indices, graph.data
-        self._rows = np.repeat(np.arange(n), np.diff(graph.indptr))
-        # The lattice is symmetric: edge e = (u, v) has the reverse (v, u). Sorted by (v, u),
-        # the edges come in the order of their reverses sorted by (u, v).
-        self._reverse = np.empty_like(self._cols)
-        self._reverse[np.lexsort((self._rows, self._cols))] = np.arange(len(self._cols))
+        """The 26-connected lattice of every cell (:func:`_lattice_of`, shared by the guides
+        of one process): CSR rows, columns, edge lengths, and each edge's reverse."""
+        (self._indptr, self._cols, self._lengths, self._rows,
+         self._reverse) = _lattice_of(self.shape, self.cell, self.climb)
 
     def _cell(self, points: np.ndarray) -> np.ndarray:
         """(k, 3) integer cell indices of (k, 3) points (not clipped)."""
@@ -330,7 +315,7 @@ class Guide:
             self.trail.popleft()  # the oldest kept is at least stuck_time back
         if (t - self.trail[0][0] < self.stuck_time or self.aim is None
                 or np.linalg.norm(self.goal - y) <= self.lookahead
-                or max(np.linalg.norm(p - y) for _, p in self.trail) >= STUCK_DISTANCE):
+                or max(_norm(p - y) for _, p in self.trail) >= STUCK_DISTANCE):
             return False
         gap = float(np.linalg.norm(self.aim - y))
         s = np.arange(self.cell, min(gap, self.lookahead), self.cell / 4)
@@ -400,6 +385,35 @@ class Guide:
         return samples[free[0]] if len(free) else self.point.copy()
 
 
+@functools.lru_cache(maxsize=4)
+def _lattice_of(shape: tuple[int, int, int], cell: float, climb: float) -> tuple:
+    """The 26-connected lattice of a grid of ``shape`` cells of side ``cell`` (a metre up or
+    down costing ``climb``), read-only: CSR ``indptr``, columns and edge lengths (m), each
+    edge's row, and each edge's reverse (the lattice is symmetric: edge (u, v) has (v, u)).
+    Built once per grid and process; a flight's guide only reads it."""
+    index = np.arange(int(np.prod(shape))).reshape(shape)
+    rows, cols, lengths = [], [], []
+    for d in _NEIGHBOURS:
+        src = tuple(slice(max(0, -o), n - max(0, o)) for o, n in zip(d, shape))
+        dst = tuple(slice(max(0, o), n + min(0, o)) for o, n in zip(d, shape))
+        rows.append(index[src].ravel())
+        cols.append(index[dst].ravel())
+        lengths.append(np.full(rows[-1].size, cell * float(np.linalg.norm(
+            d * (1.0, 1.0, climb)))))
+    n = index.size
+    graph = csr_matrix((np.concatenate(lengths), (np.concatenate(rows), np.concatenate(cols))),
+                       shape=(n, n))
+    graph.sort_indices()
+    edge_rows = np.repeat(np.arange(n), np.diff(graph.indptr))
+    # Sorted by (v, u), the edges come in the order of their reverses sorted by (u, v).
+    reverse = np.empty_like(graph.indices)
+    reverse[np.lexsort((edge_rows, graph.indices))] = np.arange(len(graph.indices))
+    arrays = (graph.indptr, graph.indices, graph.data, edge_rows, reverse)
+    for a in arrays:
+        a.setflags(write=False)
+    return arrays
+
+
 def _turn(current, want: np.ndarray, max_turn: float) -> np.ndarray:
     """The unit vector ``current`` (2-D or 3-D) turned towards the unit vector ``want`` by at
     most ``max_turn`` rad, in their common plane (``want`` itself when there is no
@@ -418,6 +432,11 @@ def _turn(current, want: np.ndarray, max_turn: float) -> np.ndarray:
         if norm < 1e-9:  # straight up or down
             side, norm = np.eye(len(current))[0], 1.0
     return math.cos(max_turn) * current + math.sin(max_turn) * side / norm
+
+
+def _norm(v: np.ndarray) -> float:
+    """‖v‖ of a 1-D array, as ``np.linalg.norm`` computes it (√(v·v)), without its checks."""
+    return math.sqrt(v.dot(v))
 
 
 def _occupied(local_map) -> tuple[np.ndarray, np.ndarray]:
