@@ -92,13 +92,15 @@ int voxel_map_update(int n, int cap, int64_t *keys, double *centre, double *log_
     int *slot = malloc((size_t)(m > 0 ? m : 1) * sizeof(int));
     double *reach = malloc((size_t)(n + m > 0 ? n + m : 1) * sizeof(double));
     uint8_t *hit = calloc((size_t)(n + m > 0 ? n + m : 1), 1);
-    if (!hit_key || !order || !slot || !reach || !hit) {
-        free(hit_key); free(order); free(slot); free(reach); free(hit);
+    uint8_t *near = malloc((size_t)(n > 0 ? n : 1));
+    if (!hit_key || !order || !slot || !reach || !hit || !near) {
+        free(hit_key); free(order); free(slot); free(reach); free(hit); free(near);
         return -1;
     }
     /* Association: the voxel whose representative lies within `merge` of the return (the
      * nearest, first in key order on a tie), among those within range + merge of the
-     * sensor; else the voxel the return falls in. */
+     * sensor (`near`); else the voxel the return falls in. */
+    for (int v = 0; v < n; v++) near[v] = merge > 0 && dist3(point + 3 * v, p) <= range + merge;
     for (int r = 0; r < m; r++) {
         const double *q = points + 3 * r;
         hit_key[r] = key_of(q, voxel);
@@ -106,7 +108,7 @@ int voxel_map_update(int n, int cap, int64_t *keys, double *centre, double *log_
         double best = INFINITY;
         int nearest = -1;
         for (int v = 0; v < n; v++) {
-            if (!(dist3(point + 3 * v, p) <= range + merge)) continue;
+            if (!near[v]) continue;
             double dx = q[0] - point[3 * v], dy = q[1] - point[3 * v + 1];
             double dz = q[2] - point[3 * v + 2];
             double d2 = dx * dx + dy * dy + dz * dz;
@@ -202,7 +204,7 @@ int voxel_map_update(int n, int cap, int64_t *keys, double *centre, double *log_
     if (kept > budget) {
         int *rank = malloc((size_t)kept * sizeof(int));
         if (!rank) {
-            free(hit_key); free(order); free(slot); free(reach); free(hit);
+            free(hit_key); free(order); free(slot); free(reach); free(hit); free(near);
             return -1;
         }
         int c = 0;
@@ -219,7 +221,7 @@ int voxel_map_update(int n, int cap, int64_t *keys, double *centre, double *log_
         if (to != v) copy_voxel(&map, to, v);
         to++;
     }
-    free(hit_key); free(order); free(slot); free(reach); free(hit);
+    free(hit_key); free(order); free(slot); free(reach); free(hit); free(near);
     return to;
 }
 
