@@ -130,9 +130,10 @@ GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
                  line_search=True),
     GoldenFlight("ground-robot-smooth", "the unicycle round the L-wall (another vehicle, "
                  "another output dimension)", steps=200, vehicle="unicycle"),
-    GoldenFlight("passage-map-guide-noisy-s000", "the noisy LiDAR read through the local map "
-                 "(hits, misses, association, hysteresis), and the guide's plans and "
-                 "set-points, on a random passage where the paper's controller stalls",
+    GoldenFlight("passage-map-guide-noisy-s000", "the first 15 s of a random passage with the "
+                 "noisy LiDAR read through the local map and the guide: spurious returns and "
+                 "dropouts that never confirm a voxel, the guide's first plan and set-point "
+                 "(the walls come into range later)",
                  scenario="random", kind="passage", seed=0, steps=1500, layer="map"),
 )
 
