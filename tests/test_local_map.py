@@ -183,6 +183,9 @@ def test_bad_update_arguments_are_named():
         m.update(EMPTY, [0.0, 0.0], 0.0)
     with pytest.raises(ValueError, match="exclude"):
         m.update(EMPTY, np.zeros(3), 0.0, exclude=[True, False])
+    with pytest.raises(ValueError, match="scan must hold finite"):
+        m.update([np.array([[1.0, np.nan, 0.0]])], np.zeros(3), 0.0)
+    assert len(m) == 0  # refused before anything entered
 
 
 # --- the map in the closed loop (``sensor.map_voxel``) ----------------------------------------

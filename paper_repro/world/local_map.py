@@ -201,6 +201,9 @@ class VoxelMap:
         kept = [i for i in range(len(scan)) if exclude is None or not exclude[i]]
         parts = [np.asarray(scan[i], float).reshape(-1, 3) for i in kept]
         points = np.ascontiguousarray(np.concatenate(parts) if parts else np.zeros((0, 3)))
+        if not np.isfinite(points).all():
+            raise ValueError("scan must hold finite returns (m); drop the non-finite ones "
+                             "first, as the closed loop does")
         labels = np.repeat(np.array(kept, np.int64), [len(q) for q in parts])
         if self._n + len(points) > self._cap:
             self._room(max(2 * self._cap, self._n + len(points)))
