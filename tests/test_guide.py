@@ -193,3 +193,25 @@ def test_a_plan_weighs_the_edges_as_if_from_scratch():
         scratch = np.where(guide.blocked[guide._rows] | guide.blocked[guide._cols], np.inf,
                            guide._lengths)
         assert np.array_equal(guide._edge_weights(), scratch)
+
+
+def test_the_segments_are_seen_as_one_segment_at_a_time_would_see_them():
+    """``_sees`` samples every segment together. Each must be seen exactly as its own samples
+    say: s = skip, skip + cell/4, … below its length L, and L itself, each in a free cell
+    (a segment no longer than skip is seen), on grids from nearly empty to crowded."""
+    guide = Guide(np.array([-2.5, -2.5, 0.0]), np.array([12.5, 10.5, 8.0]))
+    rng = np.random.default_rng(2)
+    for share in (0.0, 0.01, 0.05, 0.2):
+        guide.blocked[:] = rng.random(guide.blocked.size) < share
+        y = rng.uniform(guide.lower, guide.upper)
+        targets = y + rng.normal(size=(40, 3)) * rng.uniform(0.2, 6.0, size=(40, 1))
+        one_at_a_time = []
+        for target in targets:
+            length = float(np.linalg.norm(target - y))
+            s = np.append(np.arange(guide._skip, length, guide.cell / 4), length)
+            samples = y + np.outer(s / length, target - y)
+            one_at_a_time.append(length <= guide._skip or bool(guide._free(samples).all()))
+        seen = guide._sees(y, targets)
+        assert seen.tolist() == one_at_a_time
+        assert 0 < seen.sum() < len(seen) or share == 0.0
+    assert guide._sees(y, np.zeros((0, 3))).shape == (0,)

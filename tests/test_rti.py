@@ -108,6 +108,19 @@ def test_riccati_and_hpipm_give_the_same_closed_loop(scene):
     assert runs["hpipm"].meta["qp_counts"] == {"riccati": 0, "hpipm": 300, "failed": 0}
 
 
+def test_hpipm_is_handed_the_dense_qp_entry_for_entry():
+    """The nonzeros handed to HPIPM are a fixed permutation of the linearisation's blocks: the
+    sparse H and A must equal :meth:`QPLayout.dense` of the same blocks, bit for bit."""
+    chain = make_controller(_qp_config("riccati")).qp
+    lay, rng = chain.layout, np.random.default_rng(3)
+    h = rng.normal(size=int(np.sum(np.square(lay.sizes))))
+    j = rng.normal(size=lay.n_ab + lay.nc * lay.nz[-1])
+    H, A = chain.matrices(h, j)
+    dense_h, dense_a = lay.dense(h, j)
+    assert np.array_equal(np.array(H), dense_h) and np.array_equal(np.array(A), dense_a)
+    assert H.nnz() == np.count_nonzero(dense_h)
+
+
 def test_when_the_riccati_solver_gives_up_hpipm_takes_over(scene):
     """With a single EQP allowed, the cold first QP (rate bounds binding, none guessed) is
     left to HPIPM, whose active set then seeds the Riccati solver: same trajectory."""

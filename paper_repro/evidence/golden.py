@@ -130,11 +130,11 @@ GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
                  line_search=True),
     GoldenFlight("ground-robot-smooth", "the unicycle round the L-wall (another vehicle, "
                  "another output dimension)", steps=200, vehicle="unicycle"),
-    GoldenFlight("passage-map-guide-noisy-s000", "the first 15 s of a random passage with the "
-                 "noisy LiDAR read through the local map and the guide: spurious returns and "
-                 "dropouts that never confirm a voxel, the guide's first plan and set-point "
-                 "(the walls come into range later)",
-                 scenario="random", kind="passage", seed=0, steps=1500, layer="map"),
+    GoldenFlight("passage-map-guide-noisy-s010", "the first 15 s of a random passage with the "
+                 "noisy LiDAR read through the local map and the guide: a wall in range for "
+                 "half the flight (up to 21 map points), spurious returns and dropouts, "
+                 "and the guide re-planning nine times round what the map has confirmed",
+                 scenario="random", kind="passage", seed=10, steps=1500, layer="map"),
 )
 
 LAYERS = ("", "map")
@@ -326,11 +326,18 @@ def stale_evidence() -> list[str]:
 
 
 def _study_layer(meta: dict) -> str:
-    """The golden layer a study's runs use, from its ``study.json``: ``"map"`` when its base
-    or any run reads the local map."""
-    voxels = [meta["base_config"].get("sensor", {}).get("map_voxel", 0.0)]
-    voxels += [spec["config_changes"].get("sensor.map_voxel", 0.0) for spec in meta["specs"]]
-    return "map" if any(v > 0 for v in voxels) else ""
+    """The golden layer a study's runs use (:func:`layer_of`), from its ``study.json``: the
+    base configuration and each run's changes to it."""
+    from paper_repro.config import Config
+
+    def config(changes: dict) -> Config:
+        data = {part: dict(fields) for part, fields in meta["base_config"].items()}
+        for key, value in changes.items():
+            part, name = key.split(".", 1)
+            data.setdefault(part, {})[name] = value
+        return Config.from_dict(data)
+
+    return layer_of(config({}), *(config(spec["config_changes"]) for spec in meta["specs"]))
 
 
 def sha256_of(path: Path) -> str:

@@ -113,6 +113,7 @@ class Guide:
         self.max_turn, self.climb = math.radians(max_turn), float(climb)
         self.stuck_time = float(stuck_time)
         self.shape = tuple(int(n) for n in np.maximum(np.ceil((hi - lo) / cell), 1))
+        self._counts = np.array(self.shape)
         self._lattice()
         reach = int(math.ceil(self.inflation / self.cell)) + 1
         self._stencil = np.array(list(itertools.product(range(-reach, reach + 1), repeat=3)))
@@ -192,7 +193,7 @@ class Guide:
         return np.ravel_multi_index(ijk.T, self.shape)
 
     def _inside(self, ijk: np.ndarray) -> np.ndarray:
-        return np.all((ijk >= 0) & (ijk < np.array(self.shape)), axis=1)
+        return ((ijk >= 0) & (ijk < self._counts)).all(axis=1)
 
     def _centres(self, ijk: np.ndarray) -> np.ndarray:
         return self.lower + (ijk + 0.5) * self.cell
@@ -222,19 +223,36 @@ class Guide:
     def _free(self, points: np.ndarray) -> np.ndarray:
         """(k,) bool: each point is in the box and in a free cell."""
         ijk = self._cell(points)
-        ok = self._inside(ijk) & np.all((points >= self.lower) & (points <= self.upper), axis=1)
+        ok = ((ijk >= 0) & (ijk < self._counts) & (points >= self.lower)
+              & (points <= self.upper)).all(axis=1)
         ok[ok] = ~self.blocked[self._flat(ijk[ok])]
         return ok
 
-    def _sees(self, y: np.ndarray, target: np.ndarray) -> bool:
-        """The segment from y to ``target`` crosses no blocked cell (beyond the blocked cells
-        the vehicle is among at the start)."""
-        length = float(np.linalg.norm(target - y))
-        if length <= self._skip:
-            return True
-        s = np.arange(self._skip, length, self.cell / 4)
-        samples = y + np.outer(np.append(s, length) / length, target - y)
-        return bool(self._free(samples).all())
+    def _sees(self, y: np.ndarray, targets: np.ndarray) -> np.ndarray:
+        """(k,) bool: the segment from y to each of the (k, 3) ``targets`` crosses no blocked
+        cell (beyond the blocked cells the vehicle is among at the start). A segment of length
+        L is sampled at s = skip, skip + cell/4, … below L, and at L (one no longer than skip
+        is seen); the samples of every segment are looked up together."""
+        ways = targets - y
+        lengths = np.array([math.sqrt(w.dot(w)) for w in ways])  # as np.linalg.norm
+        seen = np.ones(len(targets), bool)
+        far = np.flatnonzero(lengths > self._skip)
+        if len(far) == 0:
+            return seen
+        step = self.cell / 4
+        # np.arange(skip, L, step) for each L: a prefix of the longest one (same values).
+        counts = np.array([math.ceil((length - self._skip) / step) for length in
+                           lengths[far].tolist()]) + 1  # the end point L too
+        s = np.arange(self._skip, float(lengths[far].max()), step)
+        segment = np.repeat(np.arange(len(far)), counts)
+        starts = np.cumsum(counts) - counts
+        within = np.arange(len(segment)) - starts[segment]
+        last = within == counts[segment] - 1
+        length = lengths[far][segment]
+        at = np.where(last, length, s[np.minimum(within, len(s) - 1)])
+        samples = y + (at / length)[:, None] * ways[far][segment]
+        seen[far] = np.logical_and.reduceat(self._free(samples), starts)
+        return seen
 
     # --- the path ---------------------------------------------------------------------------
 
@@ -315,7 +333,7 @@ class Guide:
             self.trail.popleft()  # the oldest kept is at least stuck_time back
         if (t - self.trail[0][0] < self.stuck_time or self.aim is None
                 or np.linalg.norm(self.goal - y) <= self.lookahead
-                or max(_norm(p - y) for _, p in self.trail) >= STUCK_DISTANCE):
+                or any(_norm(p - y) >= STUCK_DISTANCE for _, p in self.trail)):
             return False
         gap = float(np.linalg.norm(self.aim - y))
         s = np.arange(self.cell, min(gap, self.lookahead), self.cell / 4)
@@ -336,18 +354,16 @@ class Guide:
     def _move_on(self, y: np.ndarray) -> None:
         """Aim at the look-ahead point (or the goal, once in sight), and turn the pull
         towards it by at most ``max_turn``."""
-        if self.path is None or self._sees(y, self.goal):
-            ahead = None  # no path (none exists, or the map is empty), or the goal in sight
-        else:
+        ahead = None  # no path (none exists, or the map is empty), or the goal in sight
+        if self.path is not None:
             gaps = np.linalg.norm(self.path[self.progress:] - y, axis=1)
-            self.progress += int(np.argmin(gaps))
-            within = np.flatnonzero(np.linalg.norm(self.path[self.progress:] - y, axis=1)
-                                    <= self.lookahead) + self.progress
-            ahead = self.progress
-            for j in within[::-1]:
-                if self._sees(y, self.path[j]):
-                    ahead = int(j)
-                    break
+            nearest = int(np.argmin(gaps))
+            progress = self.progress + nearest
+            within = np.flatnonzero(gaps[nearest:] <= self.lookahead) + progress
+            seen = self._sees(y, np.vstack([self.goal, self.path[within]]))
+            if not seen[0]:  # the goal out of sight: the farthest path point in sight
+                self.progress = progress
+                ahead = int(within[seen[1:]][-1]) if seen[1:].any() else progress
         if ahead != self.ahead or self.want is None:
             self.ahead = ahead
             self.aim = self.goal if ahead is None else self.path[ahead]
