@@ -487,6 +487,9 @@ class GuideParams:
     stuck_time : s, *chosen* 2.5. A vehicle that moved less than 5 cm over this long, far
         from its goal, is stuck: the cells between it and its aim are avoided and the path is
         planned again (before the closed loop calls the run stalled, after 5 s).
+    set_point_filter : s, *chosen* 0 (none). Time constant of a first-order filter on the
+        set-point handed to the NMPC: the guide's set-point moves in small steps at every
+        check, whose 10 Hz content reaches the thrusts; a filter makes it glide instead.
     """
 
     planner: str = "none"
@@ -498,9 +501,11 @@ class GuideParams:
     max_turn: float = 3.0
     climb: float = 2.0
     stuck_time: float = 2.5
+    set_point_filter: float = 0.0
 
     def __post_init__(self):
         require_choice("planner", self.planner, GUIDES)
+        require_range("set_point_filter", self.set_point_filter, 0.0, math.inf)
         for name in ("cell", "inflation", "check_period", "replan_period", "max_turn", "climb",
                      "stuck_time"):
             require_positive(name, getattr(self, name))

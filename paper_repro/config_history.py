@@ -22,6 +22,7 @@ ADDED = {
     ("barrier", "equilibrium_lookahead"): 0.0,
     ("sensor", "map_voxel"): 0.0,
     ("guide", None): None,
+    ("guide", "set_point_filter"): 0.0,  # after ("guide", None): the part's defaults hold it
 }
 """Settings added after the committed evidence was flown, (part, name) → the value that flies
 as before (the golden flights prove it). A run whose setting has that value is keyed as it was

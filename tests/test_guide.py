@@ -137,6 +137,11 @@ def test_guide_parameters_are_checked_and_need_the_map():
         Config(guide=GuideParams(planner="grid"))
     with pytest.raises(ValueError, match=r"^lower and upper must be"):
         Guide(UPPER, LOWER)
+    for bad in (-0.1, math.inf, math.nan):
+        with pytest.raises(ValueError, match=r"^set_point_filter must be a finite number"):
+            GuideParams(set_point_filter=bad)
+        with pytest.raises(ValueError, match=r"^set_point_filter must be a finite number"):
+            Guide(LOWER, UPPER, set_point_filter=bad)
 
 
 def test_the_guide_off_keeps_every_key_and_on_enters_it():
@@ -147,12 +152,18 @@ def test_the_guide_off_keeps_every_key_and_on_enters_it():
     before = cfg.to_dict()
     del before["guide"]
     for part, name in ADDED:
-        if name is not None:
+        if name is not None and part in before:
             del before[part][name]
     assert cfg.key_dict() == before and Config.from_dict(before) == cfg
     guided = Config(sensor=SensorParams(map_voxel=0.5), guide=GuideParams(planner="grid"))
     assert guided.key_dict()["guide"]["planner"] == "grid"
     assert Config.from_dict(guided.key_dict()) == guided
+    # The set-point filter came later: off, a guided run keeps the key it had without it.
+    assert "set_point_filter" not in guided.key_dict()["guide"]
+    filtered = dataclasses.replace(guided, guide=GuideParams(planner="grid",
+                                                             set_point_filter=0.5))
+    assert filtered.key_dict()["guide"]["set_point_filter"] == 0.5
+    assert Config.from_dict(filtered.key_dict()) == filtered
 
 
 def test_map_and_guide_take_the_paper_controller_past_a_deadlock():
@@ -215,3 +226,28 @@ def test_the_segments_are_seen_as_one_segment_at_a_time_would_see_them():
         assert seen.tolist() == one_at_a_time
         assert 0 < seen.sum() < len(seen) or share == 0.0
     assert guide._sees(y, np.zeros((0, 3))).shape == (0,)
+
+
+def test_the_set_point_filter_is_a_first_order_lag_of_the_guides_set_point():
+    """With an empty map the guide's own set-point is the goal. When the goal steps, the
+    filtered set-point glides to it as g₂ + (g₁ − g₂)·e^(−(t − t₁)/τ), whatever the call
+    times; it starts at the first set-point and stays on the segment between the two. With
+    no filter the same calls hand over the goal itself."""
+    tau, g1, g2 = 0.5, GOAL, np.array([9.0, 0.0, 5.0])  # on the same level line
+    # The vehicle is held at START: a stuck_time beyond the test keeps the path as it is.
+    guide = Guide(LOWER, UPPER, set_point_filter=tau, stuck_time=1e3)
+    plain = Guide(LOWER, UPPER, stuck_time=1e3)
+    empty = VoxelMap()
+    assert np.array_equal(guide.set_point(empty, START, 0.0, g1), g1)
+    rng = np.random.default_rng(4)
+    times = np.cumsum(rng.uniform(0.005, 0.05, 200)) + 1.0
+    for t in times:
+        got = guide.set_point(empty, START, t, g2)
+        want = g2 + (g1 - g2) * math.exp(-(t - 0.0) / tau)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+        along = np.dot(got - g1, g2 - g1) / np.dot(g2 - g1, g2 - g1)
+        assert 0.0 < along < 1.0
+        np.testing.assert_allclose(got, g1 + along * (g2 - g1), atol=1e-12)
+        assert np.array_equal(plain.set_point(empty, START, t, g2), g2)
+    guide.reset()
+    assert np.array_equal(guide.set_point(empty, START, 0.0, g2), g2)

@@ -266,6 +266,7 @@ EVIDENCE_SETS = (
     "studies/moving_levers",  # benchmarks/moving_levers.py --save
     "studies/guidance",  # study guidance
     "guidance_cost",  # benchmarks/guidance_cost.py --save
+    "guide_filter",  # benchmarks/guide_filter.py --save
     "tuning",  # tune
 )
 """Every committed evidence set, as a folder under ``figures/``."""

@@ -252,7 +252,7 @@ def _guide(cfg: Config, model: VehicleModel, local_map: VoxelMap | None) -> Guid
     return Guide(lower[index], upper[index], cell=g.cell, inflation=g.inflation,
                  lookahead=g.lookahead, check_period=g.check_period,
                  replan_period=g.replan_period, max_turn=g.max_turn, climb=g.climb,
-                 stuck_time=g.stuck_time)
+                 stuck_time=g.stuck_time, set_point_filter=g.set_point_filter)
 
 
 def _predictor(prediction: str, lidar: Lidar, ts: float):

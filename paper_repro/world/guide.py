@@ -46,6 +46,11 @@ Feasible and smooth:
   artificial equilibrium absorbs each small move, as at the switch between two targets of the
   paper's mission.
 
+Optionally filtered: with ``set_point_filter`` τ > 0 the set-point handed over is a first-order
+filter of the one above, y_f ← y_f + (1 − e^(−Δt/τ))·(y_t − y_f) at every call, so it glides
+where y_t steps every check. It is then a convex combination of past set-points: inside the
+box, but no longer kept out of blocked cells; the barrier keeps the vehicle clear.
+
 A :class:`Guide` is plain numpy and scipy; its cost is reported by ``stats``.
 """
 
@@ -90,16 +95,21 @@ class Guide:
     stuck_time : s (> 0): a vehicle that moved less than :data:`STUCK_DISTANCE` over this
         long, farther than ``lookahead`` from the goal, is stuck: the cells between it and its
         aim are avoided from then on, and the path is planned again.
+    set_point_filter : s (≥ 0): time constant of the filter on the set-point handed over (0:
+        none, the piecewise-constant set-point itself).
     """
 
     def __init__(self, lower, upper, cell: float = 1.0, inflation: float = 2.0,
                  lookahead: float = 8.0, check_period: float = 0.1,
                  replan_period: float = 1.0, max_turn: float = 3.0, climb: float = 2.0,
-                 stuck_time: float = 2.5):
+                 stuck_time: float = 2.5, set_point_filter: float = 0.0):
         for name, value in (("cell", cell), ("inflation", inflation), ("max_turn", max_turn),
                             ("climb", climb), ("stuck_time", stuck_time),
                             ("check_period", check_period), ("replan_period", replan_period)):
             require_positive(name, value)
+        if not (math.isfinite(set_point_filter) and set_point_filter >= 0):
+            raise ValueError(f"set_point_filter must be a finite number >= 0 s, got "
+                             f"{set_point_filter!r}")
         if not (math.isfinite(lookahead) and lookahead >= cell):
             raise ValueError(f"lookahead must be a finite number >= cell = {cell} m, got "
                              f"{lookahead!r}")
@@ -111,7 +121,7 @@ class Guide:
         self.inflation, self.lookahead = float(inflation), float(lookahead)
         self.check_period, self.replan_period = float(check_period), float(replan_period)
         self.max_turn, self.climb = math.radians(max_turn), float(climb)
-        self.stuck_time = float(stuck_time)
+        self.stuck_time, self.set_point_filter = float(stuck_time), float(set_point_filter)
         self.shape = tuple(int(n) for n in np.maximum(np.ceil((hi - lo) / cell), 1))
         self._counts = np.array(self.shape)
         self._lattice()
@@ -138,7 +148,8 @@ class Guide:
         self.progress = 0                    # index of the path point the vehicle is at
         self.ahead = None                    # index of the look-ahead point (None: the goal)
         self.goal, self._goal = None, None
-        self.point = None                    # the set-point handed over, (3,)
+        self.point = None                    # the guide's set-point y_t, (3,)
+        self.filtered, self.filtered_at = None, None  # y_f and its time (set_point_filter)
         self.aim = None                      # the look-ahead point (or the goal), (3,)
         self.want = None                     # horizontal unit direction of the aim, (2,)
         self.direction = None                # horizontal unit direction of the pull, (2,)
@@ -151,9 +162,22 @@ class Guide:
     # --- what the closed loop calls ---------------------------------------------------------
 
     def set_point(self, local_map, y, t: float, goal) -> np.ndarray:
-        """The set-point y_t at time ``t`` (s) for a vehicle at ``y`` ((3,), m) bound for
-        ``goal`` ((3,), m), from ``local_map`` (a :class:`~paper_repro.world.local_map.VoxelMap`).
-        Between checks it is the previous one."""
+        """The set-point at time ``t`` (s) for a vehicle at ``y`` ((3,), m) bound for ``goal``
+        ((3,), m), from ``local_map`` (a :class:`~paper_repro.world.local_map.VoxelMap`): y_t,
+        the previous one between checks, or its filter y_f (``set_point_filter`` > 0)."""
+        point = self._set_point(local_map, y, t, goal)
+        if self.set_point_filter == 0.0:
+            return point
+        if self.filtered is None:
+            self.filtered = point.copy()
+        else:
+            gain = -math.expm1(-(t - self.filtered_at) / self.set_point_filter)
+            self.filtered = self.filtered + gain * (point - self.filtered)
+        self.filtered_at = t
+        return self.filtered
+
+    def _set_point(self, local_map, y, t: float, goal) -> np.ndarray:
+        """y_t: the guide's own set-point, piecewise constant."""
         goal = np.asarray(goal, float)
         if self.goal is None or goal.tolist() != self._goal:  # as np.array_equal, cheaper
             self.goal, self.path, self.point = goal.copy(), None, goal.copy()
