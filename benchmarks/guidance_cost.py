@@ -114,7 +114,7 @@ def main(argv=None) -> None:
         out = figures_dir() / "guidance_cost"
         out.mkdir(parents=True, exist_ok=True)
         table.to_csv(out / "cost.csv", index=False, float_format="%.4g")
-        stamp(out, command_line(), "map")
+        stamp(out, command_line(), "guide")
         print(f"wrote {out / 'cost.csv'}")
 
 

@@ -1,19 +1,20 @@
 """The guide's set-point filter: chattering, time and clearance with and without it.
 
-    python benchmarks/guide_filter.py [--passages 20] [--taus 0.5,1] [--workers 2] [--save]
+    python benchmarks/guide_filter.py [--passages 20] [--taus 0,1] [--workers 2] [--save]
 
 The guide moves its set-point in small steps at every check (0.1 s), and those steps reach the
 thrusts: on the guidance study's passages the smoothed metric's share of thrust power above
-5 Hz is several times the paper controller's. ``guide.set_point_filter`` (τ, s) hands the NMPC
-a first-order filter of the set-point instead. This flies the first ``--passages`` passages
-of the guidance study's smoothed "local map + guide" arm once per τ, and pairs each flight
-with the study's own run of the same passage (τ = 0, read from its committed table):
+5 Hz is several times the paper controller's. ``guide.set_point_filter`` (τ, s; 0.5 by
+default) hands the NMPC a first-order filter of the set-point instead. This flies the first
+``--passages`` passages of the guidance study's smoothed "local map + guide" arm once per τ
+of ``--taus`` (0 among them: no filter), and pairs each flight with the unfiltered flight of
+the same passage; the study's own runs (the default τ) are read from its committed table:
 outcome, time to complete, minimum clearance, the share of thrust power above 5 Hz and the
 total variation rate of the thrusts.
 
 ``--save`` writes ``figures/guide_filter/flights.csv`` (one row per passage and τ, what the
 flights determine, byte-stable) and ``summary.csv`` (per τ: completed, collisions, and the
-medians of the paired ratios), stamped with the map layer's golden hash.
+medians of the ratios to no filter), stamped with the guide layer's golden hash.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ import pandas as pd  # noqa: E402
 
 from paper_repro import paths  # noqa: E402
 from paper_repro.analysis.metrics import COLLISION_CLEARANCE, summary_row  # noqa: E402
+from paper_repro.config import GuideParams  # noqa: E402
 from paper_repro.evidence.golden import stamp  # noqa: E402
 from paper_repro.sim.loop import simulate  # noqa: E402
 from paper_repro.studies.catalogue import make_study  # noqa: E402
@@ -64,22 +66,26 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--passages", type=int, default=20)
-    parser.add_argument("--taus", default="0.5,1")
+    parser.add_argument("--taus", default="0,1")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--save", action="store_true")
     args = parser.parse_args()
     taus = [float(v) for v in args.taus.split(",")]
-    if args.passages < 1 or any(not (np.isfinite(t) and t > 0) for t in taus):
-        parser.error("--passages must be >= 1 and every --taus value a number > 0 (s)")
+    default = GuideParams().set_point_filter
+    if (args.passages < 1 or 0.0 not in taus or default in taus
+            or any(not (np.isfinite(t) and t >= 0) for t in taus)):
+        parser.error(f"--passages must be >= 1, and --taus numbers >= 0 (s) that hold 0 (no "
+                     f"filter, what the ratios divide by) and not {default} (the study's)")
     study = pd.read_csv(paths.figures_dir() / "studies" / "guidance" / "table.csv")
     study = study.set_index("name")
-    base = [{"seed": seed, "tau_s": 0.0, **study.loc[ARM.format(seed=seed), COLUMNS].to_dict()}
+    base = [{"seed": seed, "tau_s": default,
+             **study.loc[ARM.format(seed=seed), COLUMNS].to_dict()}
             for seed in range(args.passages)]
     jobs = [(seed, tau) for tau in taus for seed in range(args.passages)]
     with ProcessPoolExecutor(max_workers=max(1, args.workers)) as pool:
         flown = list(pool.map(_fly, jobs))
-    flights = pd.DataFrame(base + flown)
-    summary = pd.DataFrame([_summary(flights, tau) for tau in [0.0, *taus]])
+    flights = pd.DataFrame(flown + base).sort_values(["tau_s", "seed"], kind="stable")
+    summary = pd.DataFrame([_summary(flights, tau) for tau in sorted({*taus, default})])
     print(summary.to_string(index=False))
     if args.save:
         out = paths.figures_dir() / "guide_filter"
@@ -87,7 +93,7 @@ def main() -> None:
         flights.to_csv(out / "flights.csv", index=False, float_format="%.6g")
         summary.to_csv(out / "summary.csv", index=False, float_format="%.4g")
         stamp(out, f"python benchmarks/guide_filter.py --save --passages {args.passages} "
-                   f"--taus {args.taus}", layer="map")
+                   f"--taus {args.taus}", layer="guide")
 
 
 def _summary(flights: pd.DataFrame, tau: float) -> dict:

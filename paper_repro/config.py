@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from paper_repro.config_history import moved_settings, without_added
+from paper_repro.config_history import moved_settings, with_added, without_added
 from paper_repro.validation import (
     is_number,
     require_choice,
@@ -467,7 +467,7 @@ class GuideParams:
     Attributes
     ----------
     planner : ``"none"`` (*paper*: the set-point is the mission's target) or ``"grid"``
-        (Dijkstra's algorithm on a 26-connected grid of the workspace; needs the local map,
+        (the shortest path, by A*, on a 26-connected grid of the workspace; needs the local map,
         ``sensor.map_voxel`` > 0, and a 3-D scene).
     cell : m, *chosen* 1. Side of a grid cell.
     inflation : m, *chosen* 2. A cell is blocked when a mapped point lies within this of its
@@ -487,9 +487,10 @@ class GuideParams:
     stuck_time : s, *chosen* 2.5. A vehicle that moved less than 5 cm over this long, far
         from its goal, is stuck: the cells between it and its aim are avoided and the path is
         planned again (before the closed loop calls the run stalled, after 5 s).
-    set_point_filter : s, *chosen* 0 (none). Time constant of a first-order filter on the
-        set-point handed to the NMPC: the guide's set-point moves in small steps at every
-        check, whose 10 Hz content reaches the thrusts; a filter makes it glide instead.
+    set_point_filter : s, *chosen* 0.5 (0: none). Time constant of a first-order filter on
+        the set-point handed to the NMPC: the guide's set-point moves in small steps at every
+        check, whose 10 Hz content reaches the thrusts; the filter makes it glide instead
+        (``benchmarks/guide_filter.py`` measures it against none).
     """
 
     planner: str = "none"
@@ -501,7 +502,7 @@ class GuideParams:
     max_turn: float = 3.0
     climb: float = 2.0
     stuck_time: float = 2.5
-    set_point_filter: float = 0.0
+    set_point_filter: float = 0.5
 
     def __post_init__(self):
         require_choice("planner", self.planner, GUIDES)
@@ -581,12 +582,14 @@ class Config:
 
     @classmethod
     def from_dict(cls, data: dict) -> Config:
-        """Inverse of :meth:`to_dict`; a missing part (an older file) takes its defaults, and a
-        setting in its former place (:data:`~paper_repro.config_history.MOVED`) is read into
-        its new one."""
+        """Inverse of :meth:`to_dict` and of :meth:`key_dict`; a missing part (an older file)
+        takes its defaults, a setting in its former place
+        (:data:`~paper_repro.config_history.MOVED`) is read into its new one, and a setting
+        added since a part was written (:data:`~paper_repro.config_history.ADDED`) takes the
+        value that flies as before it (``with_added``), not its default."""
         if not isinstance(data, dict):
             raise ValueError(f"config must be a dict of parts, got {type(data).__name__}")
-        data = moved_settings(data)
+        data = with_added(moved_settings(data))
         unknown = set(data) - {f.name for f in dataclasses.fields(cls)}
         if unknown:
             raise ValueError(f"config has unknown parts {sorted(unknown)}")

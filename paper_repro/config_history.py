@@ -42,7 +42,11 @@ def without_added(data: dict, defaults: dict) -> dict:
             for part, values in data.items()}
     for (part, name), neutral in ADDED.items():
         if name is None:
-            if part in data and data[part] == defaults[part]:
+            # The settings added to the part later do not count: at its other defaults the
+            # part flies as before, whatever they hold (the guide off ignores its filter).
+            later = {n for p, n in ADDED if p == part and n is not None}
+            if part in data and ({k: v for k, v in data[part].items() if k not in later}
+                                 == {k: v for k, v in defaults[part].items() if k not in later}):
                 del data[part]
         elif isinstance(data.get(part), dict) and data[part].get(name, None) == neutral:
             del data[part][name]
@@ -65,3 +69,15 @@ def moved_settings(data: dict) -> dict:
         new[new_name] = old.pop(old_name)
     return data
 
+
+def with_added(data: dict) -> dict:
+    """``data`` (read from a ``config.json`` or a key) with every setting of :data:`ADDED`
+    that a part it gives lacks set to its neutral value: a part written before the setting
+    existed (or keyed without it) flew as before it, whatever the setting's default is now.
+    A part it does not give is left out, to take its defaults."""
+    data = {part: dict(values) if isinstance(values, dict) else values
+            for part, values in data.items()}
+    for (part, name), neutral in ADDED.items():
+        if name is not None and isinstance(data.get(part), dict):
+            data[part].setdefault(name, neutral)
+    return data

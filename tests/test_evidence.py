@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from paper_repro import Config, paths
+from paper_repro.config import GuideParams
 from paper_repro.evidence import golden as evidence
 from paper_repro.studies.runs import run_key
 
@@ -73,32 +74,37 @@ def _rewrite_golden(folder, name):
          "layers": layers}))
 
 
-def test_a_change_to_the_map_retires_only_what_uses_the_map(tmp_path, monkeypatch):
-    """The map's golden flight moved: the runs and evidence sets that read the map go stale,
-    the others keep their keys and stamps (nothing else needs flying again)."""
+@pytest.mark.parametrize("layer", ["map", "guide"])
+def test_a_change_to_a_layer_retires_only_what_uses_it(tmp_path, monkeypatch, layer):
+    """A layer's golden flight moved: the runs and evidence sets that use the layer, or one
+    built on it, go stale (the map's change retires the guided runs too, the guide's leaves
+    the map-only runs alone); the others keep their keys and stamps."""
     import dataclasses
 
     shutil.copytree(paths.golden_dir(), tmp_path / "figures" / "golden")
     monkeypatch.setenv(paths.ROOT_ENV, str(tmp_path))
     mapped = dataclasses.replace(Config(), sensor=dataclasses.replace(Config().sensor,
                                                                       map_voxel=0.5))
-    assert evidence.layer_of(Config()) == "" and evidence.layer_of(Config(), mapped) == "map"
-    core_set = tmp_path / "figures" / "studies" / "monte_carlo"
-    map_set = tmp_path / "figures" / "studies" / "guidance"
-    for folder, layer in ((core_set, ""), (map_set, "map")):
-        folder.mkdir(parents=True)
-        evidence.stamp(folder, "test", layer)
-    keys = run_key(Config(), 100, "fp"), run_key(mapped, 100, "fp")
-    assert not {"studies/monte_carlo", "studies/guidance"} & set(evidence.stale_evidence())
-    core = evidence.golden_hash()
+    guided = dataclasses.replace(mapped, guide=GuideParams(planner="grid"))
+    assert [evidence.layer_of(*c) for c in ((Config(),), (Config(), mapped),
+                                            (mapped, guided))] == ["", "map", "guide"]
+    sets = {"": "studies/monte_carlo", "map": "studies/sensor_noise", "guide": "guidance_cost"}
+    for used, name in sets.items():
+        (tmp_path / "figures" / name).mkdir(parents=True)
+        evidence.stamp(tmp_path / "figures" / name, "test", used)
+    configs = {"": Config(), "map": mapped, "guide": guided}
+    keys = {used: run_key(cfg, 100, "fp") for used, cfg in configs.items()}
+    assert not set(sets.values()) & set(evidence.stale_evidence())
+    hashes = {used: evidence.golden_hash(used) for used in evidence.LAYERS}
 
-    map_flight = next(f.name for f in evidence.GOLDEN_FLIGHTS if f.layer == "map")
-    _rewrite_golden(tmp_path / "figures" / "golden", map_flight)
-    assert evidence.golden_hash() == core
-    assert run_key(Config(), 100, "fp") == keys[0]
-    assert run_key(mapped, 100, "fp") != keys[1]
-    stale = evidence.stale_evidence()
-    assert "studies/guidance" in stale and "studies/monte_carlo" not in stale
+    moved = next(f.name for f in evidence.GOLDEN_FLIGHTS if f.layer == layer)
+    _rewrite_golden(tmp_path / "figures" / "golden", moved)
+    retired = set(evidence.LAYERS[evidence.LAYERS.index(layer):])
+    stale = set(evidence.stale_evidence())
+    for used, cfg in configs.items():
+        assert (evidence.golden_hash(used) != hashes[used]) == (used in retired)
+        assert (run_key(cfg, 100, "fp") != keys[used]) == (used in retired)
+        assert (sets[used] in stale) == (used in retired)
 
 
 def test_a_study_of_map_runs_stamped_with_the_core_hash_is_stale(tmp_path, monkeypatch):

@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 import pytest
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
 from paper_repro.analysis.metrics import COLLISION_CLEARANCE
@@ -14,7 +16,7 @@ from paper_repro.config import Config, GuideParams, SensorParams
 from paper_repro.config_history import ADDED
 from paper_repro.sim.loop import simulate
 from paper_repro.studies.catalogue import passage_config, with_guide, with_map
-from paper_repro.world.guide import Guide, _turn
+from paper_repro.world.guide import _NEIGHBOURS, Guide, _shortest_path, _turn
 from paper_repro.world.local_map import VoxelMap
 from paper_repro.world.shapes import Box, halton_cloud
 
@@ -158,12 +160,16 @@ def test_the_guide_off_keeps_every_key_and_on_enters_it():
     guided = Config(sensor=SensorParams(map_voxel=0.5), guide=GuideParams(planner="grid"))
     assert guided.key_dict()["guide"]["planner"] == "grid"
     assert Config.from_dict(guided.key_dict()) == guided
-    # The set-point filter came later: off, a guided run keeps the key it had without it.
-    assert "set_point_filter" not in guided.key_dict()["guide"]
-    filtered = dataclasses.replace(guided, guide=GuideParams(planner="grid",
-                                                             set_point_filter=0.5))
-    assert filtered.key_dict()["guide"]["set_point_filter"] == 0.5
-    assert Config.from_dict(filtered.key_dict()) == filtered
+    # The set-point filter came later (on by default): off, a guided run keeps the key it
+    # had without it, and a guided part written without it reads back off, as it flew.
+    assert guided.key_dict()["guide"]["set_point_filter"] == GuideParams().set_point_filter > 0
+    unfiltered = dataclasses.replace(guided, guide=GuideParams(planner="grid",
+                                                               set_point_filter=0.0))
+    assert "set_point_filter" not in unfiltered.key_dict()["guide"]
+    assert Config.from_dict(unfiltered.key_dict()) == unfiltered
+    # The guide off flies the same whatever its filter: keyed as the paper's default.
+    off = dataclasses.replace(cfg, guide=GuideParams(set_point_filter=0.0))
+    assert off.key_dict() == cfg.key_dict()
 
 
 def test_map_and_guide_take_the_paper_controller_past_a_deadlock():
@@ -191,19 +197,58 @@ def test_the_map_alone_does_not_move_the_set_point():
     assert result.set_points is None
 
 
-def test_a_plan_weighs_the_edges_as_if_from_scratch():
-    """The edge weights a plan hands Dijkstra are kept from the last plan and brought up to
-    date only at the cells blocked or freed since: they must equal the weights made from
-    scratch (inf into or out of a blocked cell, the edge's length otherwise)."""
+def _dijkstra_from_goal(guide: Guide, goal: int) -> np.ndarray:
+    """Every cell's distance to ``goal`` on the free 26-grid, by scipy's Dijkstra over the
+    whole lattice built from scratch (the reference the guide's A* must match)."""
+    index = np.arange(guide.blocked.size).reshape(guide.shape)
+    rows, cols, weights = [], [], []
+    for d, step in zip(_NEIGHBOURS, guide._steps):
+        src = tuple(slice(max(0, -o), n - max(0, o)) for o, n in zip(d, guide.shape))
+        dst = tuple(slice(max(0, o), n + min(0, o)) for o, n in zip(d, guide.shape))
+        u, v = index[src].ravel(), index[dst].ravel()
+        keep = ~(guide.blocked[u] | guide.blocked[v])
+        rows.append(u[keep]), cols.append(v[keep]), weights.append(np.full(keep.sum(), step))
+    n = guide.blocked.size
+    graph = csr_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))),
+                       shape=(n, n))
+    return dijkstra(graph, directed=True, indices=goal)
+
+
+def test_the_path_search_is_as_short_as_dijkstra_over_the_whole_grid():
+    """The guide's A* (from several start cells, each entered at its gap) must find the
+    least gap + distance to the goal that Dijkstra over the whole grid gives, through a chain
+    of free 26-neighbours from a start to the goal, whose lengths to the goal are Dijkstra's;
+    and no path where Dijkstra finds none (a goal walled in)."""
     guide = Guide(np.array([-2.5, -2.5, 0.0]), np.array([12.5, 10.5, 8.0]))
     rng = np.random.default_rng(1)
-    assert np.array_equal(guide._rows[guide._reverse], guide._cols)
-    assert np.array_equal(guide._cols[guide._reverse], guide._rows)
-    for share in (0.05, 0.3, 0.1, 0.0, 0.2):
+    step_of = {tuple(d): s for d, s in zip(_NEIGHBOURS, guide._steps)}
+    for share in (0.0, 0.05, 0.2, 0.35):
         guide.blocked[:] = rng.random(guide.blocked.size) < share
-        scratch = np.where(guide.blocked[guide._rows] | guide.blocked[guide._cols], np.inf,
-                           guide._lengths)
-        assert np.array_equal(guide._edge_weights(), scratch)
+        free = np.flatnonzero(~guide.blocked)
+        goal = int(rng.choice(free))
+        sources = rng.choice(free[free != goal], size=5, replace=False)
+        gaps = rng.uniform(0.0, guide.cell, size=5)
+        dist = _dijkstra_from_goal(guide, goal)
+        found = _shortest_path(guide.shape, guide._steps, guide.blocked, sources, gaps, goal,
+                               guide.cell, guide.climb)
+        best = np.min(gaps + dist[sources])
+        if not np.isfinite(best):
+            assert found is None
+            continue
+        chain, along = found
+        assert chain[0] in sources and chain[-1] == goal
+        assert not guide.blocked[chain].any()
+        ijk = np.stack(np.unravel_index(chain, guide.shape), axis=1)
+        lengths = [step_of[tuple(d)] for d in np.diff(ijk, axis=0)]  # KeyError: not neighbours
+        assert np.allclose(along, np.cumsum(lengths[::-1])[::-1].tolist() + [0.0], rtol=1e-12)
+        assert along[0] + gaps[list(sources).index(chain[0])] == pytest.approx(best, rel=1e-12)
+        assert np.allclose(along, dist[chain], rtol=1e-12, atol=0.0)
+    guide.blocked[:] = False
+    goal = int(np.ravel_multi_index((5, 5, 5), guide.shape))
+    walls = np.array(np.unravel_index(np.arange(guide.blocked.size), guide.shape)).T
+    guide.blocked[np.abs(walls - 5).max(axis=1) == 1] = True  # a shell of cells round it
+    assert _shortest_path(guide.shape, guide._steps, guide.blocked, np.array([0]),
+                          np.array([0.0]), goal, guide.cell, guide.climb) is None
 
 
 def test_the_segments_are_seen_as_one_segment_at_a_time_would_see_them():

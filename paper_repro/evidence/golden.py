@@ -5,13 +5,13 @@ makes. Two things enforce it.
 
 * **Golden flights** (:data:`GOLDEN_FLIGHTS`): a few short canonical closed loops (the paper
   mission with each metric, the encounter with each metric, a random passage, the moving
-  ``crossing``, the IPOPT reference at one instant-rich window, the ground robot, and, in
-  the ``"map"`` layer (:data:`LAYERS`), the noisy LiDAR through the local map with the
-  guide). Their states and inputs are committed in ``figures/golden/<name>.npy`` and
-  ``figures/golden/golden.json`` holds the SHA-256 of each file and of the whole set, the
-  *golden hash*. ``tests/test_evidence.py`` flies them and compares against the committed
-  arrays (:func:`check_golden`, :data:`POSITION_TOLERANCE`): a change of code that moves a
-  flight fails there.
+  ``crossing``, the IPOPT reference at one instant-rich window, the ground robot; in the
+  ``"map"`` layer (:data:`LAYERS`), the noisy LiDAR through the local map; in the
+  ``"guide"`` layer, the same with the guide). Their states and inputs are committed in
+  ``figures/golden/<name>.npy`` and ``figures/golden/golden.json`` holds the SHA-256 of each
+  file and of the whole set, the *golden hash*. ``tests/test_evidence.py`` flies them and
+  compares against the committed arrays (:func:`check_golden`, :data:`POSITION_TOLERANCE`):
+  a change of code that moves a flight fails there.
 * **Evidence stamps**: each committed evidence set (``figures/``, the ``paper-timeline``
   preset, the timeline flights, every study folder, the tuning outputs, the fidelity table)
   has an ``evidence.json`` that records the golden hash it was made with (:func:`stamp`,
@@ -20,8 +20,10 @@ makes. Two things enforce it.
   must be regenerated too, in the same submission. The golden hash also enters every run's
   cache key (:func:`paper_repro.studies.runs.run_key`), so regenerating the golden flights retires
   every cached run and nothing stale is ever redrawn. A layer's flights enter only the hash
-  of that layer: the runs and sets that read the local map carry the ``"map"`` hash, so a
-  change to the map retires them and leaves every other run and set as it is.
+  of that layer and of the layers built on it: the runs and sets that read the local map carry the
+  ``"map"`` hash and the guided ones the ``"guide"`` hash, so a change to the map retires
+  them all, a change to the guide only the guided ones, and every other run and set stays as
+  it is.
 
 A pure refactor leaves every golden flight within tolerance: the committed files, the hash,
 the stamps and the cache keys stay as they are, and nothing needs re-flying.
@@ -65,8 +67,8 @@ class GoldenFlight:
     start : ``(other flight, step)``: start from the state that flight reached at that step
         (a window rich in obstacles, flown with a slow solver); ``None``: the scene's start.
     vehicle : ``"quadrotor"`` or ``"unicycle"`` (the ground robot's planar L-wall).
-    layer : ``""`` (the core) or ``"map"``: the noisy LiDAR read through the local map, with
-        the guide (:data:`LAYERS`).
+    layer : ``""`` (the core), ``"map"`` (the noisy LiDAR read through the local map) or
+        ``"guide"`` (the same with the guide) (:data:`LAYERS`).
     """
 
     name: str
@@ -99,13 +101,15 @@ class GoldenFlight:
                                                kind=self.kind, seed=self.seed,
                                                max_steps=self.steps),
                 nmpc=dataclasses.replace(cfg.nmpc, prediction=self.prediction))
-        if self.layer == "map":
+        if self.layer in ("map", "guide"):
             from paper_repro.config import GuideParams
             from paper_repro.world.lidar import NOISY_LIDAR
             from paper_repro.world.local_map import MAP_VOXEL
 
-            cfg = dataclasses.replace(cfg, guide=GuideParams(planner="grid"), sensor=(
+            cfg = dataclasses.replace(cfg, sensor=(
                 dataclasses.replace(NOISY_LIDAR, seed=self.seed, map_voxel=MAP_VOXEL)))
+        if self.layer == "guide":
+            cfg = dataclasses.replace(cfg, guide=GuideParams(planner="grid"))
         return dataclasses.replace(cfg, solver=dataclasses.replace(
             cfg.solver, nlp_solver=self.solver, line_search=self.line_search))
 
@@ -130,23 +134,32 @@ GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
                  line_search=True),
     GoldenFlight("ground-robot-smooth", "the unicycle round the L-wall (another vehicle, "
                  "another output dimension)", steps=200, vehicle="unicycle"),
-    GoldenFlight("passage-map-guide-noisy-s010", "the first 15 s of a random passage with the "
-                 "noisy LiDAR read through the local map and the guide: a wall in range for "
-                 "half the flight (up to 21 map points), spurious returns and dropouts, "
-                 "and the guide re-planning nine times round what the map has confirmed",
+    GoldenFlight("passage-map-noisy-s010", "the first 15 s of a random passage with the "
+                 "noisy LiDAR read through the local map: a wall in range for half the flight, "
+                 "spurious returns that never confirm, dropouts that erase nothing",
                  scenario="random", kind="passage", seed=10, steps=1500, layer="map"),
+    GoldenFlight("passage-map-guide-noisy-s010", "the same passage with the guide: up to 21 "
+                 "map points in range, the guide re-planning round what the map has "
+                 "confirmed, its set-point filtered",
+                 scenario="random", kind="passage", seed=10, steps=1500, layer="guide"),
 )
 
-LAYERS = ("", "map")
-"""The layers of the golden flights. The core (``""``) covers what every run flies; the
-``"map"`` layer covers the local map and the guide (``sensor.map_voxel`` > 0), which only
-some runs use. A run's cache key and an evidence set's stamp hold the golden hash of the
-layer they use (:func:`golden_hash`, :func:`layer_of`): a change to the map retires the
-cached runs and stamps that use the map, and leaves the others as they are."""
+LAYERS = ("", "map", "guide")
+"""The layers of the golden flights, each built on the ones before it. The core (``""``)
+covers what every run flies; the ``"map"`` layer the local map (``sensor.map_voxel`` > 0),
+and the ``"guide"`` layer the guide on the map (``guide.planner`` other than ``"none"``),
+which only some runs use. A layer's hash covers its flights and those of the layers before
+it. A run's cache key and an evidence set's stamp hold the golden hash of the layer they use
+(:func:`golden_hash`, :func:`layer_of`): a change to the map retires the cached runs and
+stamps that use the map (guided or not), a change to the guide those that use the guide, and
+the others stay as they are."""
 
 
 def layer_of(*configs) -> str:
-    """The golden layer runs of ``configs`` use: ``"map"`` when any reads the local map."""
+    """The golden layer runs of ``configs`` use: ``"guide"`` when any is guided, else
+    ``"map"`` when any reads the local map, else the core ``""``."""
+    if any(c.guide.planner != "none" for c in configs):
+        return "guide"
     return "map" if any(c.sensor.map_voxel > 0 for c in configs) else ""
 
 
@@ -225,7 +238,7 @@ def write_golden(names=None, force: bool = False) -> list[dict]:
 
 def golden_hash(layer: str = "") -> str:
     """The committed golden hash of ``layer`` (:data:`LAYERS`; ``figures/golden/golden.json``):
-    the core flights' for ``""``, the core's and the layer's together for another, or
+    the core flights' for ``""``, those of the layer and the layers before it for another, or
     ``"none"`` before the golden flights exist."""
     if layer not in LAYERS:
         raise ValueError(f"layer must be one of {LAYERS}, got {layer!r}")
@@ -246,8 +259,8 @@ def recomputed_golden_hash(layer: str = "") -> str:
 
 
 def _layer_files(files: dict, layer: str) -> dict:
-    """The files of the core flights and, for a layer, of that layer's flights too."""
-    wanted = {f.name for f in GOLDEN_FLIGHTS if f.layer in ("", layer)}
+    """The files of the flights of ``layer`` and of the layers before it."""
+    wanted = {f.name for f in GOLDEN_FLIGHTS if LAYERS.index(f.layer) <= LAYERS.index(layer)}
     return {name: digest for name, digest in files.items() if name in wanted}
 
 

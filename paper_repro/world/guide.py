@@ -12,9 +12,11 @@ from a path on the :class:`~paper_repro.world.local_map.VoxelMap`:
   the safe distance √(2·d_min) = 1.41 m of the printed barrier, and a little more. Unknown
   space counts as free, so with an empty map the path is the straight line and the guide
   hands over the final target, exactly as the paper.
-* **The path.** Dijkstra's algorithm from the goal on the 26-connected grid of free cells
-  (:func:`scipy.sparse.csgraph.dijkstra`; one search gives every cell its distance to the
-  goal, so the path from wherever the vehicle is follows the predecessors). A metre up or down
+* **The path.** The shortest path on the 26-connected grid of free cells, from the free
+  cells around the vehicle (each entered at its distance from the vehicle) to the goal's
+  cell: A* under the straight-line heuristic, which is consistent on this grid, so the path
+  is as short as Dijkstra's algorithm over the whole grid would make it, at a small share of
+  its cost (``_grid_path.c``, built once per machine like the map). A metre up or down
   costs ``climb`` (2) metres along the level, so the path keeps the flight's altitude unless
   a way over or under is much shorter. It is replanned when the map changes the path: every
   ``check_period`` (0.1 s) the voxels that became occupied since the last plan block their
@@ -51,21 +53,22 @@ filter of the one above, y_f ← y_f + (1 − e^(−Δt/τ))·(y_t − y_f) at e
 where y_t steps every check. It is then a convex combination of past set-points: inside the
 box, but no longer kept out of blocked cells; the barrier keeps the vehicle clear.
 
-A :class:`Guide` is plain numpy and scipy; its cost is reported by ``stats``.
+A :class:`Guide` is numpy, with its search in C; its cost is reported by ``stats``.
 """
 
 from __future__ import annotations
 
+import ctypes
 import functools
 import itertools
 import math
 import time
 from collections import deque
+from importlib import resources
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
+from paper_repro._native import load_library
 from paper_repro.validation import require_positive
 
 STUCK_DISTANCE = 0.05
@@ -73,7 +76,7 @@ STUCK_DISTANCE = 0.05
 2 cm/s for the default 2.5 s; the closed loop calls a run stalled after 5 s below 1 cm/s)."""
 
 _NEIGHBOURS = np.array([d for d in itertools.product((-1, 0, 1), repeat=3) if any(d)])
-"""The 26 offsets of a cell's neighbours."""
+"""The 26 offsets of a cell's neighbours, (26, 3)."""
 
 
 class Guide:
@@ -102,7 +105,7 @@ class Guide:
     def __init__(self, lower, upper, cell: float = 1.0, inflation: float = 2.0,
                  lookahead: float = 8.0, check_period: float = 0.1,
                  replan_period: float = 1.0, max_turn: float = 3.0, climb: float = 2.0,
-                 stuck_time: float = 2.5, set_point_filter: float = 0.0):
+                 stuck_time: float = 2.5, set_point_filter: float = 0.5):
         for name, value in (("cell", cell), ("inflation", inflation), ("max_turn", max_turn),
                             ("climb", climb), ("stuck_time", stuck_time),
                             ("check_period", check_period), ("replan_period", replan_period)):
@@ -124,7 +127,9 @@ class Guide:
         self.stuck_time, self.set_point_filter = float(stuck_time), float(set_point_filter)
         self.shape = tuple(int(n) for n in np.maximum(np.ceil((hi - lo) / cell), 1))
         self._counts = np.array(self.shape)
-        self._lattice()
+        # What a step to each neighbour costs, m: its length, a metre up or down weighing climb.
+        self._steps = np.array([self.cell * float(np.linalg.norm(d * (1.0, 1.0, self.climb)))
+                                for d in _NEIGHBOURS])
         reach = int(math.ceil(self.inflation / self.cell)) + 1
         self._stencil = np.array(list(itertools.product(range(-reach, reach + 1), repeat=3)))
         # Blocked cells near the vehicle are not counted against a segment that starts there:
@@ -138,9 +143,6 @@ class Guide:
         """Forget the map, the path and the set-point (a new flight)."""
         self.blocked = np.zeros(int(np.prod(self.shape)), bool)
         self.avoid = np.zeros_like(self.blocked)  # cells the vehicle got stuck in front of
-        # The edge weights of the last plan (inf into or out of a blocked cell), and the
-        # blocked cells they were made for: a plan updates only the edges of changed cells.
-        self._weights, self._weighted = self._lengths.copy(), self.blocked.copy()
         self.trail = deque()                 # (t, y) of the checks over the last stuck_time
         self.mapped = np.zeros(0, np.int64)  # map keys behind ``blocked``, sorted
         self.path = None                     # (m, 3) points, the goal last
@@ -201,12 +203,6 @@ class Guide:
         return self.point
 
     # --- the grid ---------------------------------------------------------------------------
-
-    def _lattice(self) -> None:
-        """The 26-connected lattice of every cell (:func:`_lattice_of`, shared by the guides
-        of one process): CSR rows, columns, edge lengths, and each edge's reverse."""
-        (self._indptr, self._cols, self._lengths, self._rows,
-         self._reverse) = _lattice_of(self.shape, self.cell, self.climb)
 
     def _cell(self, points: np.ndarray) -> np.ndarray:
         """(k, 3) integer cell indices of (k, 3) points (not clipped)."""
@@ -292,38 +288,17 @@ class Guide:
         goal_cell = self._nearest_free(self.goal, self.goal)
         origin = self._nearest_free(y, None) if goal_cell is not None else None
         if origin is not None:
-            graph = csr_matrix((self._edge_weights(), self._cols, self._indptr),
-                               shape=(len(self.blocked),) * 2)
-            dist, pred = dijkstra(graph, directed=True, indices=int(goal_cell),
-                                  return_predecessors=True)
             candidates, gaps = origin
-            total = gaps + dist[candidates]
-            best = int(np.argmin(total))
-            if np.isfinite(total[best]):
-                node, chain = int(candidates[best]), []
-                while node >= 0:
-                    chain.append(node)
-                    node = int(pred[node]) if node != goal_cell else -1
-                ijk = np.stack(np.unravel_index(np.array(chain), self.shape), axis=1)
+            found = _shortest_path(self.shape, self._steps, self.blocked, candidates, gaps,
+                                   goal_cell, self.cell, self.climb)
+            if found is not None:
+                chain, along = found
+                ijk = np.stack(np.unravel_index(chain, self.shape), axis=1)
                 self.path = np.vstack([self._centres(ijk), self.goal])
                 tail = float(np.linalg.norm(self.goal - self.path[-2]))
-                self.remaining = np.append(dist[chain] + tail, 0.0)
+                self.remaining = np.append(along + tail, 0.0)
         self.stats["plans"] += 1
         self.stats["plan_s"] += time.perf_counter() - start
-
-    def _edge_weights(self) -> np.ndarray:
-        """Each edge's length, inf into or out of a blocked cell: the last plan's weights,
-        with the edges of the cells blocked or freed since brought up to date."""
-        changed = np.flatnonzero(self.blocked != self._weighted)
-        if len(changed):
-            starts, counts = self._indptr[changed], np.diff(self._indptr)[changed]
-            out = np.repeat(starts - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
-            edges = np.concatenate([out, self._reverse[out]])
-            self._weights[edges] = np.where(
-                self.blocked[self._rows[edges]] | self.blocked[self._cols[edges]], np.inf,
-                self._lengths[edges])
-            self._weighted = self.blocked.copy()
-        return self._weights
 
     def _nearest_free(self, p: np.ndarray, exact):
         """The goal's cell (``exact`` given: the free cell nearest it, as a flat number), or the
@@ -425,33 +400,39 @@ class Guide:
         return samples[free[0]] if len(free) else self.point.copy()
 
 
-@functools.lru_cache(maxsize=4)
-def _lattice_of(shape: tuple[int, int, int], cell: float, climb: float) -> tuple:
-    """The 26-connected lattice of a grid of ``shape`` cells of side ``cell`` (a metre up or
-    down costing ``climb``), read-only: CSR ``indptr``, columns and edge lengths (m), each
-    edge's row, and each edge's reverse (the lattice is symmetric: edge (u, v) has (v, u)).
-    Built once per grid and process; a flight's guide only reads it."""
-    index = np.arange(int(np.prod(shape))).reshape(shape)
-    rows, cols, lengths = [], [], []
-    for d in _NEIGHBOURS:
-        src = tuple(slice(max(0, -o), n - max(0, o)) for o, n in zip(d, shape))
-        dst = tuple(slice(max(0, o), n + min(0, o)) for o, n in zip(d, shape))
-        rows.append(index[src].ravel())
-        cols.append(index[dst].ravel())
-        lengths.append(np.full(rows[-1].size, cell * float(np.linalg.norm(
-            d * (1.0, 1.0, climb)))))
-    n = index.size
-    graph = csr_matrix((np.concatenate(lengths), (np.concatenate(rows), np.concatenate(cols))),
-                       shape=(n, n))
-    graph.sort_indices()
-    edge_rows = np.repeat(np.arange(n), np.diff(graph.indptr))
-    # Sorted by (v, u), the edges come in the order of their reverses sorted by (u, v).
-    reverse = np.empty_like(graph.indices)
-    reverse[np.lexsort((edge_rows, graph.indices))] = np.arange(len(graph.indices))
-    arrays = (graph.indptr, graph.indices, graph.data, edge_rows, reverse)
-    for a in arrays:
-        a.setflags(write=False)
-    return arrays
+def _shortest_path(shape, steps: np.ndarray, blocked: np.ndarray, sources: np.ndarray,
+                   gaps: np.ndarray, goal: int, cell: float, climb: float):
+    """The shortest path on the grid of ``shape`` cells through the cells not ``blocked``
+    ((n,) bool), from any of the flat cells ``sources`` (entered at the costs ``gaps``, m) to
+    the flat cell ``goal``, a step to neighbour d costing ``steps[d]`` (m, the offsets of
+    :data:`_NEIGHBOURS`): A* in ``_grid_path.c``. Returns (chain, along): the path's flat
+    cells, a start first and the goal last, and each one's length to the goal along it, m;
+    ``None`` when the goal cannot be reached."""
+    dims = np.array(shape, np.int64)
+    offsets = np.ascontiguousarray(_NEIGHBOURS, np.int64)
+    steps = np.ascontiguousarray(steps, float)
+    cells = np.ascontiguousarray(blocked, np.uint8)
+    sources = np.ascontiguousarray(sources, np.int64)
+    gaps = np.ascontiguousarray(gaps, float)
+    chain, along = np.empty(cells.size, np.int64), np.empty(cells.size)
+    m = _library().grid_path(dims.ctypes.data, offsets.ctypes.data, steps.ctypes.data,
+                             cells.ctypes.data, len(sources), sources.ctypes.data,
+                             gaps.ctypes.data, int(goal), float(cell), float(climb),
+                             chain.ctypes.data, along.ctypes.data)
+    if m < 0:
+        raise MemoryError("the guide's path search could not allocate its workspace")
+    return (chain[:m].copy(), along[:m].copy()) if m else None
+
+
+@functools.cache
+def _library() -> ctypes.CDLL:
+    """The compiled path search (``_grid_path.c``), built once per machine."""
+    source = resources.files("paper_repro.world").joinpath("_grid_path.c").read_bytes()
+    lib = load_library("grid_path", source, flags=("-ffp-contract=off",))
+    ptr, i64, dbl = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
+    lib.grid_path.restype = i64
+    lib.grid_path.argtypes = [ptr, ptr, ptr, ptr, i64, ptr, ptr, i64, dbl, dbl, ptr, ptr]
+    return lib
 
 
 def _turn(current, want: np.ndarray, max_turn: float) -> np.ndarray:
