@@ -33,6 +33,23 @@ def test_a_compiler_error_is_reported_with_its_message(cache):
     assert list(cache.iterdir()) == []
 
 
+def test_the_build_is_for_one_instruction_set_wherever_the_cpu_has_it(cache, monkeypatch):
+    """Every x86-64 CPU with AVX2 and FMA gets the same -march (so the same code and the same
+    flights, and a library key that does not name the CPU); a CPU without them, or another
+    architecture, its own."""
+    v3 = {"sse4_2", "avx", "avx2", "bmi1", "bmi2", "f16c", "fma", "movbe", "abm", "avx512f"}
+    portable = (f"-march={_native.PORTABLE_ARCH}",)
+    assert _native.arch_flags_for("x86_64", v3) == portable
+    assert _native.arch_flags_for("x86_64", v3 - {"avx512f"}) == portable
+    assert _native.arch_flags_for("x86_64", v3 - {"fma"}) == ("-march=native",)
+    assert _native.arch_flags_for("aarch64", v3) == ("-march=native",)
+    source = b"double thrice(double x) { return 3 * x; }\n"
+    lib = _native.build_library("thrice", source)
+    if _native.arch_flags() == portable:  # another CPU model would find the same library
+        monkeypatch.setattr(_native, "_cpu_tag", lambda: b"another CPU")
+        assert _native.build_library("thrice", source) == lib
+
+
 def test_native_function_matches_casadi(cache):
     x = ca.SX.sym("x", 3)
     p = ca.SX.sym("p", 2, 2)
