@@ -255,6 +255,23 @@ def guidance_cost() -> str:
                                "guide, ms", "map and guide, ms"], rows)
 
 
+def guide_filter() -> str:
+    """``figures/guide_filter/summary.csv``: the guide's set-point filter, per time constant τ,
+    on the first passages of the smoothed map-and-guide arm, against no filter
+    (``benchmarks/guide_filter.py``)."""
+    table = pd.read_csv(paths.figures_dir() / "guide_filter" / "summary.csv")
+    rows = [["none" if r.tau_s == 0 else f"{r.tau_s:g} s", f"{r.completed}/{r.passages}",
+             f"{r.collisions}/{r.passages}", fmt.num(r.hf_share_median),
+             fmt.ratio(r.hf_share_ratio_median), fmt.ratio(r.tv_rate_ratio_median),
+             fmt.ratio(r.time_ratio_median), fmt.metres(r.min_clearance_m)]
+            for r in table.itertuples()]
+    return fmt.markdown_table(["set-point filter τ", "completed", "collisions",
+                               "share of thrust power above 5 Hz (median)",
+                               "its ratio to no filter (median per passage)",
+                               "total variation rate, ratio", "time to complete, ratio",
+                               "min clearance"], rows)
+
+
 def sensing_window() -> str:
     """``figures/studies/sensing_window/``: the paper mission with and without the window
     (``sensing_window_mission.csv``), then the passages, one row per width
@@ -561,7 +578,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "monte_carlo": monte_carlo,
     "eta_sweep": eta_sweep, "sensor_noise": sensor_noise, "sensing_window": sensing_window,
     "sensor_noise_cost": sensor_noise_cost, "guidance": guidance,
-    "guidance_cost": guidance_cost,
+    "guidance_cost": guidance_cost, "guide_filter": guide_filter,
     "moving_obstacles": moving_obstacles, "avoidability": avoidability,
     "moving_levers": moving_levers, "timeline": timeline, "tuning": tuning,
     "beyond": beyond}
