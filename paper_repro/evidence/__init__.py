@@ -4,6 +4,7 @@ of the README and the book formatted from the committed tables.
 =================  ==================================================================
 ``golden``         the golden flights and the stamps every evidence set carries
 ``readme``         the tables of the README and the book, from the committed ones
+``beyond``         those of the studies beyond the paper (map, guide, moving regions, tuning)
 ``formatting``     how those tables write a rate, a share, a ratio, a time
 =================  ==================================================================
 """

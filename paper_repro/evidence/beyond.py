@@ -1,0 +1,277 @@
+"""The blocks of the README and the book that quote the studies beyond the paper: the noisy
+LiDAR through the map, the guide, moving regions and their avoidability, the levers of the
+moving-obstacle barrier, the timeline study, the tuning, and the README's table of them all
+(:func:`overview`). Each formats a committed table;
+:data:`paper_repro.evidence.readme.BLOCKS` names them."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from paper_repro import paths
+from paper_repro.evidence import formatting as fmt
+
+
+def sensor_noise_cost() -> str:
+    """``figures/studies/sensor_noise/sensor_noise_cost.csv``: what the noisy LiDAR costs
+    each metric against the perfect one on the same passage, raw and through the map."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "sensor_noise" /
+                        "sensor_noise_cost.csv")
+    labels = {"noisy": "noisy, raw scan", "noisy-map": "noisy, through the map"}
+    rows = []
+    for r in table[table["measure"].isin(["hf_energy_fraction", "tv_u_rate_N_per_s"])
+                   ].itertuples():
+        rows.append([r.metric, labels.get(r.sensor, r.sensor), r.label,
+                     fmt.num(r.median_perfect), fmt.num(r.median_sensor),
+                     f"×{fmt.num(r.median_effect)} [{fmt.num(r.low)}, {fmt.num(r.high)}]",
+                     f"{int(r.scenes)}"])
+    return fmt.markdown_table(["metric", "sensor", "measure (median over scenes)",
+                               "perfect LiDAR", "this sensor", "ratio, per scene", "scenes"],
+                              rows)
+
+
+def guidance() -> str:
+    """``figures/studies/guidance/``: outcomes per arm and metric (``guidance_rates.csv``)
+    and the time to complete (``guidance_times.csv``)."""
+    folder = paths.figures_dir() / "studies" / "guidance"
+    rates = pd.read_csv(folder / "guidance_rates.csv").set_index(["arm", "metric", "event"])
+    times = pd.read_csv(folder / "guidance_times.csv").set_index(["metric", "arm"])
+    labels = {"paper": "the paper's controller (raw scan)", "map": "reading the local map",
+              "map+guide": "local map + guide"}
+    rows = []
+    for metric, name in (("smooth", "smoothed D"), ("euclidean", "Euclidean ½d²")):
+        for arm in dict.fromkeys(a for a, _, _ in rates.index):
+            t = times.loc[(metric, arm)]
+            rows.append([name, labels.get(arm, arm),
+                         *(fmt.rate(rates.loc[(arm, metric, event)])
+                           for event in ("completed", "stalled", "step_limit", "collision")),
+                         "—" if pd.isna(t.median_s) else f"{t.median_s:.1f} s"])
+    return fmt.markdown_table(["metric", "arm", "completed", "stalled (deadlock)",
+                               "step limit (150 s)", "collision (< 0.35 m)",
+                               "time to complete (median)"], rows)
+
+
+def guidance_cost() -> str:
+    """``figures/guidance_cost/cost.csv``: what the map and the guide cost per closed-loop
+    step, on this machine (``benchmarks/guidance_cost.py``)."""
+    table = pd.read_csv(paths.figures_dir() / "guidance_cost" / "cost.csv")
+    rows = [[r.setup, f"{int(r.passages)}", f"{int(r.steps):,}", fmt.ms(r.all_in_ms),
+             fmt.ms(r.controller_ms), fmt.ms(r.map_update_ms), fmt.ms(r.map_readout_ms),
+             fmt.ms(r.guide_ms), fmt.ms(r.map_and_guide_ms)] for r in table.itertuples()]
+    return fmt.markdown_table(["set-up", "passages", "steps", "all-in step, ms",
+                               "controller, ms", "map update, ms", "map read-out, ms",
+                               "guide, ms", "map and guide, ms"], rows)
+
+
+def guide_filter() -> str:
+    """``figures/guide_filter/summary.csv``: the guide's set-point filter, per time constant τ,
+    on the first passages of the smoothed map-and-guide arm, against no filter
+    (``benchmarks/guide_filter.py``)."""
+    table = pd.read_csv(paths.figures_dir() / "guide_filter" / "summary.csv")
+    rows = [["none" if r.tau_s == 0 else f"{r.tau_s:g} s", f"{r.completed}/{r.passages}",
+             f"{r.collisions}/{r.passages}", fmt.num(r.hf_share_median),
+             fmt.ratio(r.hf_share_ratio_median), fmt.ratio(r.tv_rate_ratio_median),
+             fmt.ratio(r.time_ratio_median), fmt.metres(r.min_clearance_m)]
+            for r in table.itertuples()]
+    return fmt.markdown_table(["set-point filter τ", "completed", "collisions",
+                               "share of thrust power above 5 Hz (median)",
+                               "its ratio to no filter (median per passage)",
+                               "total variation rate, ratio", "time to complete, ratio",
+                               "min clearance"], rows)
+
+
+def moving_obstacles() -> str:
+    """``figures/studies/moving_obstacles/``: collisions per barrier, prediction and metric."""
+    folder = paths.figures_dir() / "studies" / "moving_obstacles"
+    rates = pd.read_csv(folder / "moving_obstacles_rates.csv").set_index(
+        ["barrier", "prediction", "metric", "event"])
+    summary = pd.read_csv(folder / "moving_obstacles_summary.csv").set_index(
+        ["barrier", "prediction", "metric"])
+    rows = []
+    for barrier, prediction in dict.fromkeys((b, p) for b, p, _ in summary.index):
+        row = [barrier, prediction]
+        for metric in ("smooth", "euclidean"):
+            c = rates.loc[(barrier, prediction, metric, "collision")]
+            row.append(f"{int(c.k)}/{int(c.n)} [{100 * c.low:.0f}, {100 * c.high:.0f}] %")
+        s = summary.loc[(barrier, prediction, "smooth")]
+        e = summary.loc[(barrier, prediction, "euclidean")]
+        row += [f"{s.min_clearance_median_m:.3f} / {e.min_clearance_median_m:.3f} m",
+                f"{s.min_clearance_min_m:.3f} / {e.min_clearance_min_m:.3f} m",
+                f"{s.tv_u_rate_median_N_per_s:.3g} / {e.tv_u_rate_median_N_per_s:.3g} N/s",
+                f"{fmt.share(s.completed)} / {fmt.share(e.completed)}",
+                f"{int(s.failed_solves):,} / {int(e.failed_solves):,}",
+                f"{fmt.share(s.cbf_condition_violated_share_median)} / "
+                f"{fmt.share(e.cbf_condition_violated_share_median)}"]
+        rows.append(row)
+    return fmt.markdown_table(["barrier", "prediction", "collisions, smoothed",
+                           "collisions, Euclidean",
+                           "min clearance, median (smoothed / Euclidean)", "closest approach",
+                           "TV of u, median", "completed", "failed solves",
+                           "steps breaking (15) with a region in view, median"], rows)
+
+
+def avoidability() -> str:
+    """``figures/studies/avoidability/avoidability.csv``: the crossings a point mass with the
+    quadrotor's bounds and full foresight flies clear."""
+    from scipy import stats
+
+    table = pd.read_csv(paths.figures_dir() / "studies" / "avoidability" / "avoidability.csv")
+    k, n = int(table["avoidable"].sum()), len(table)
+    ci = stats.binomtest(k, n).proportion_ci(0.95, method="exact")
+    found = table[table["avoidable"]]
+    verdict = ("\n\nEvery crossing has a passage: every collision of the study counts against "
+               "the controller." if k == n else
+               f"\n\nNo passage found for crossing(s) "
+               f"{', '.join(str(s) for s in table.loc[~table['avoidable'], 'scene_seed'])}: "
+               "their collisions are not counted against the controller.")
+    paced = table.dropna(subset=["study_time_s"])
+    k_p = int((paced["at_pace_outcome"] == "avoidable").sum())
+    return fmt.markdown_table(
+        ["crossings", "avoidable", "no passage found", "clearance of the passages found",
+         "first guess that found them", "avoidable within the study's time"],
+        [[f"{n}", f"{k}/{n} [{100 * ci.low:.0f}, {100 * ci.high:.0f}] %", f"{n - k}",
+          f"{found['clearance_m'].min():.2f} to {found['clearance_m'].max():.2f} m",
+          ", ".join(f"{g} ({c})" for g, c in found["guess"].value_counts().items()),
+          f"{k_p}/{len(paced)} (the study's crossings; closest approach "
+          f"{paced['at_pace_clearance_m'].min():.2f} m)"]]) + verdict
+
+
+def moving_levers() -> str:
+    """``figures/studies/moving_levers/levers.csv``: each lever on the crossings."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "moving_levers" / "levers.csv")
+    rows = [[r.scenes, r.lever, r.prediction, r.metric, f"{r.encounters}/{r.runs}",
+             f"{r.collisions}/{r.runs} [{100 * r.collision_low:.0f}, "
+             f"{100 * r.collision_high:.0f}] %", f"{r.min_clearance_m:.3f} m",
+             f"{r.stalled}/{r.runs}", f"{r.tv_u_rate_median_N_per_s:.3g} N/s",
+             f"{r.failed_solves:,}", fmt.share(r.cbf_condition_violated_share_median),
+             f"{r.time_to_complete_median_s:.0f} s"]
+            for r in table.itertuples()]
+    return fmt.markdown_table(["crossings", "lever", "prediction", "metric", "a region in range",
+                           "collisions", "closest approach", "stalled", "TV of u, median",
+                           "failed solves", "steps breaking (15), median",
+                           "time, median"], rows)
+
+
+def timeline() -> str:
+    """``figures/studies/timeline/timeline_flights.csv``: the candidates flown."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "timeline" / "timeline_flights.csv")
+    rows = [[r.candidate, f"{r.predicted_s:,.0f} s", f"{r.mission_time_s:,.1f} s",
+             f"{r.first_target_s:,.0f} s", r.avoidance, f"{r.min_clearance_m:.2f} m",
+             f"{r.tv_u_N:,.0f} N"] for r in table.itertuples()]
+    return fmt.markdown_table(["candidate", "linear loop", "mission", "first target",
+                      "cloud in view", "min clearance", "total variation of u"], rows)
+
+
+def tuning() -> str:
+    """``figures/tuning/``: the front (``tuning_pareto.csv``), the held-out passages per
+    set-up (``tuning_heldout_summary.csv``), each tuned set-up against the printed one, scene
+    by scene, and which set-ups are offered as presets (``presets.json``)."""
+    import json
+
+    folder = paths.figures_dir() / "tuning"
+    front = pd.read_csv(folder / "tuning_pareto.csv")
+    rows = [[f"{r.number}", f"{r.eta:g} m", f"{r.sigma:g} m", f"{r.d_min:g} m²",
+             f"{r.kappa:g}", f"{r.mu:g}", f"{r.delta:g}", fmt.share(r.hf_energy_fraction),
+             f"{r.time_to_complete_s:.1f} s", f"{r.min_clearance_m:.2f} m"]
+            for r in front.itertuples()]
+    parts = ["*The front (training passages)*\n\n" + fmt.markdown_table(
+        ["trial", "η", "σ", "d_min", "κ", "μ", "δ", "power > 5 Hz", "time to complete",
+         "min clearance"], rows)]
+    table = pd.read_csv(folder / "tuning_heldout_summary.csv")
+    parts.append("*Held-out passages*\n\n" + _heldout_rates(table))
+    presets = json.loads((folder / "presets.json").read_text())
+    for setup in dict.fromkeys(table.loc[table["kind"] == "paired", "setup"]):
+        trial = presets.get(setup, {}).get("trial")
+        paired = table[(table["kind"] == "paired") & (table["setup"] == setup)]
+        paired = paired.rename(columns={"median_printed": "median_smooth",
+                                        f"median_{setup}": "median_euclidean"})
+        parts.append(f"*{setup} (trial {trial}) against printed, per held-out scene*\n\n"
+                     + fmt.paired_table(paired, "printed", setup))
+    parts.append(_offered(presets))
+    return "\n\n".join(parts)
+
+
+def _heldout_rates(table: pd.DataFrame) -> str:
+    """Completed, collision, stalled and step-limit rates per held-out set-up."""
+    rates = table[table["kind"] == "rate"].set_index(["setup", "event"])
+    setups = list(dict.fromkeys(rates.index.get_level_values(0)))
+    rows = [[label, *(fmt.rate(rates.loc[(s, event)]) for s in setups)]
+            for event, label in (("completed", "completed"), ("collision", "collision"),
+                                 ("stalled", "stalled"), ("step_limit", "step limit"))]
+    return fmt.markdown_table(["", *setups], rows)
+
+
+def _offered(presets: dict) -> str:
+    """One sentence: the tuned set-ups offered as presets, or none and why."""
+    tuned = {k: v for k, v in presets.items() if k != "printed"}
+    offered = [k for k, v in tuned.items() if v.get("offered")]
+    if offered:
+        return ("Offered as a preset (`studies.tuning_results.preset_config`): "
+                + "; ".join(f"`{k}` ({tuned[k]['why']})" for k in offered) + ".")
+    return ("No tuned set-up is offered as a preset: "
+            + "; ".join(f"`{k}`: {v.get('why', 'not evaluated')}" for k, v in tuned.items())
+            + ".")
+
+
+def overview() -> str:
+    """Beyond the paper, for the README: the moving crossings with the paper's barrier and the
+    design (``moving_obstacles_rates.csv``), whether they were avoidable (``avoidability.csv``),
+    the tuning's held-out passages, the guide past the deadlocks (``guidance_rates.csv``) and
+    the noisy LiDAR through the map (``sensor_noise_cost.csv``)."""
+    import json
+
+    figs = paths.figures_dir()
+    moving = pd.read_csv(figs / "studies" / "moving_obstacles" /
+                         "moving_obstacles_rates.csv").set_index(["barrier", "prediction",
+                                                                  "metric", "event"])
+    avoid = pd.read_csv(figs / "studies" / "avoidability" / "avoidability.csv")
+    tuned = pd.read_csv(figs / "tuning" / "tuning_heldout_summary.csv")
+    presets = json.loads((figs / "tuning" / "presets.json").read_text())
+
+    def collided(barrier: str, prediction: str) -> str:
+        return ", ".join(
+            f"{label} {fmt.rate(moving.loc[(barrier, prediction, metric, 'collision')])}"
+            for metric, label in (("smooth", "smoothed"), ("euclidean", "Euclidean")))
+
+    n = int(moving.loc[("paper", "oracle", "smooth", "collision")].n)
+    rows = [["moving regions, the paper's barrier",
+             f"collisions over {n} crossings: static prediction {collided('paper', 'static')}; "
+             f"oracle {collided('paper', 'oracle')}; Kalman {collided('paper', 'kalman')}",
+             "`moving_obstacles_rates.csv`"],
+            ["... could a vehicle as agile have passed?",
+             f"a clear passage exists for {int(avoid['avoidable'].sum())} of {len(avoid)} "
+             "crossings (point mass with the quadrotor's bounds and full foresight)",
+             "`avoidability.csv`"],
+            ["... with the design barrier for moving regions (`studies.catalogue.MOVING_DESIGN`)",
+             f"collisions over {n} crossings: oracle {collided('design', 'oracle')}; Kalman "
+             f"{collided('design', 'kalman')}", "`moving_obstacles_rates.csv`"]]
+    rates = tuned[tuned["kind"] == "rate"].set_index(["setup", "event"])
+    rows.append(["tuned parameters, held-out passages", "; ".join(
+        f"{s}: completed {fmt.rate(rates.loc[(s, 'completed')])}, collisions "
+        f"{fmt.rate(rates.loc[(s, 'collision')])}"
+        for s in dict.fromkeys(rates.index.get_level_values(0))) + ". " + _offered(presets),
+        "`tuning_heldout_summary.csv`, `presets.json`"])
+    guided = pd.read_csv(figs / "studies" / "guidance" / "guidance_rates.csv").set_index(
+        ["arm", "metric", "event"])
+    n = int(guided.loc[("paper", "smooth", "completed")].n)
+
+    def outcomes(arm: str) -> str:
+        return ", ".join(f"{label} {fmt.rate(guided.loc[(arm, 'smooth', event)])}"
+                         for event, label in (("completed", "completed"), ("stalled", "stalled"),
+                                              ("collision", "collisions")))
+
+    rows.append([f"deadlocks: a local map and a guide (`guide.planner`), {n} random passages",
+                 f"the paper's controller: {outcomes('paper')}; map + guide: "
+                 f"{outcomes('map+guide')} (smoothed D)", "`guidance_rates.csv`"])
+    cost = pd.read_csv(figs / "studies" / "sensor_noise" / "sensor_noise_cost.csv").set_index(
+        ["metric", "sensor", "measure"])
+    hf = {s: cost.loc[("smooth", s, "hf_energy_fraction")] for s in ("noisy", "noisy-map")}
+    tv = cost.loc[("smooth", "noisy-map", "tv_u_rate_N_per_s")]
+    rows.append([f"a noisy LiDAR through the local map ({int(tv.scenes)} passages)",
+                 f"smoothed D, share of thrust power above 5 Hz: perfect LiDAR "
+                 f"{fmt.num(hf['noisy'].median_perfect)}, noisy raw scan "
+                 f"{fmt.num(hf['noisy'].median_sensor)}, noisy through the map "
+                 f"{fmt.num(hf['noisy-map'].median_sensor)}; total variation through the map "
+                 f"×{fmt.num(tv.median_effect)} [{fmt.num(tv.low)}, {fmt.num(tv.high)}] the "
+                 "perfect sensor's, per passage", "`sensor_noise_cost.csv`"])
+    return fmt.markdown_table(["beyond the paper", "measured here", "table"], rows)
