@@ -2,6 +2,9 @@
 
     python benchmarks/recheck_study.py NAME [--scenes 2] [--workers 2]
 
+``--scenes 0`` flies the whole study, as committed (the only choice for a study that does not
+fly random scenes, as ``timeline``).
+
 A study's table is what its flights determine, byte for byte, on the machine that flew it.
 The golden flights (``python -m paper_repro golden``) pin the code's behaviour on a few short
 flights; a study's long flights can still come out otherwise on another machine, in the last
@@ -64,17 +67,22 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("name", help="a committed study (figures/studies/NAME)")
-    parser.add_argument("--scenes", type=int, default=2, help="first scenes to fly (>= 1)")
+    parser.add_argument("--scenes", type=int, default=2,
+                        help="first scenes to fly (>= 1; 0: the whole study)")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (0: none)")
     args = parser.parse_args(argv)
     folder = paths.figures_dir() / "studies" / args.name
     if not (folder / "table.parquet").is_file():
         parser.error(f"NAME must be a committed study under {folder.parent}, got {args.name!r}")
-    if args.scenes < 1 or args.workers < 0:
-        parser.error("--scenes must be >= 1 and --workers >= 0")
+    if args.scenes < 0 or args.workers < 0:
+        parser.error("--scenes must be >= 0 (0: the whole study) and --workers >= 0")
+    try:
+        study = make_study(args.name, scenes=args.scenes or None)
+    except ValueError as exc:
+        parser.error(f"{exc}; --scenes 0 flies the whole study")
     committed = load_table(folder, timings=False)
     with tempfile.TemporaryDirectory() as tmp:
-        run_study(make_study(args.name, scenes=args.scenes), out=Path(tmp) / "study",
+        run_study(study, out=Path(tmp) / "study",
                   runs_dir=Path(tmp) / "runs", workers=args.workers, progress=False,
                   log=lambda line: None)
         flown = load_table(Path(tmp) / "study", timings=False)
