@@ -85,6 +85,20 @@ def test_the_moving_study_flies_each_crossing_with_every_prediction_and_the_desi
     assert len(same) == 1
 
 
+@pytest.mark.parametrize("name", sorted(S.STUDIES))
+def test_study_json_gives_every_run_its_whole_configuration_back(name):
+    """What ``study.json`` records of a run (the keyed base and the run's changes) reads back
+    as the run's configuration, a setting added later with a default other than its neutral
+    value (the guide's set-point filter) included."""
+    from paper_repro.evidence.golden import study_run_config
+    from paper_repro.studies.engine import _changes
+
+    study = make_study(name, quick=True)
+    base = study.specs[0].config.key_dict()
+    for spec in study.specs:
+        assert study_run_config(base, _changes(base, spec.config)) == spec.config, spec.name
+
+
 def test_bad_study_input_is_named():
     with pytest.raises(ValueError, match="scenes"):
         S.monte_carlo(scenes=0)

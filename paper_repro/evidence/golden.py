@@ -340,18 +340,23 @@ def stale_evidence() -> list[str]:
 
 
 def _study_layer(meta: dict) -> str:
-    """The golden layer a study's runs use (:func:`layer_of`), from its ``study.json``: the
-    base configuration and each run's changes to it."""
+    """The golden layer a study's runs use (:func:`layer_of`), from its ``study.json``."""
+    base = meta["base_config"]
+    return layer_of(study_run_config(base, {}),
+                    *(study_run_config(base, spec["config_changes"]) for spec in meta["specs"]))
+
+
+def study_run_config(base_config: dict, changes: dict):
+    """A run's :class:`~paper_repro.config.Config` as its study's ``study.json`` records it:
+    the ``base_config`` (as a key sees it) with the run's ``config_changes``
+    (``{"part.field": value}``) applied, read by :meth:`Config.from_dict`."""
     from paper_repro.config import Config
 
-    def config(changes: dict) -> Config:
-        data = {part: dict(fields) for part, fields in meta["base_config"].items()}
-        for key, value in changes.items():
-            part, name = key.split(".", 1)
-            data.setdefault(part, {})[name] = value
-        return Config.from_dict(data)
-
-    return layer_of(config({}), *(config(spec["config_changes"]) for spec in meta["specs"]))
+    data = {part: dict(fields) for part, fields in base_config.items()}
+    for key, value in changes.items():
+        part, name = key.split(".", 1)
+        data.setdefault(part, {})[name] = value
+    return Config.from_dict(data)
 
 
 def sha256_of(path: Path) -> str:

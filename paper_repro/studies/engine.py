@@ -281,15 +281,15 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
     else:
         _current_locations(out / "timings.csv", table)
     # The base as a run's key sees it (config_history.ADDED settings at their neutral value left
-    # out, as before they existed); the changes against the whole base.
-    base = study.specs[0].config.to_dict()
+    # out, as before they existed); each run's changes give its whole configuration back.
+    base = study.specs[0].config.key_dict()
     meta = {"name": study.name, "description": study.description,
             "runs": len(study.specs),
             "golden": golden_hash(layer_of(*(s.config for s in study.specs))),
-            "base_config": study.specs[0].config.key_dict(),
+            "base_config": base,
             "specs": [{"name": s.name, "key": s.key, "max_steps": s.max_steps,
                        "labels": dict(s.labels),
-                       "config_changes": _changes(base, s.config.to_dict())}
+                       "config_changes": _changes(base, s.config)}
                       for s in study.specs]}
     text = json.dumps(meta, indent=1, default=str) + "\n"
     _atomic(out / "study.json", lambda p: p.write_text(text))
@@ -327,11 +327,22 @@ def _atomic(path: Path, write) -> None:
     os.replace(tmp, path)
 
 
-def _changes(base: dict, config: dict) -> dict:
-    """``{"part.field": value}`` where ``config`` differs from ``base`` (both
-    ``Config.to_dict()``): with the base, every spec's full configuration."""
-    return {f"{part}.{name}": value for part, fields in config.items()
-            for name, value in fields.items() if base.get(part, {}).get(name) != value}
+def _changes(base: dict, config: Config) -> dict:
+    """``{"part.field": value}``: what ``config`` changes in ``base`` (a ``Config.key_dict()``),
+    so that :func:`~paper_repro.evidence.golden.study_run_config` gives ``config`` back. First
+    the settings that differ from the base's; then those that a part the changes bring in
+    would read back otherwise (a setting of ``config_history.ADDED`` reads back at its
+    neutral value, not at its default)."""
+    from paper_repro.evidence.golden import study_run_config
+
+    full = config.to_dict()
+    start = study_run_config(base, {}).to_dict()
+    changes = {f"{part}.{name}": value for part, fields in full.items()
+               for name, value in fields.items() if start[part][name] != value}
+    back = study_run_config(base, changes).to_dict()
+    changes.update({f"{part}.{name}": value for part, fields in full.items()
+                    for name, value in fields.items() if back[part][name] != value})
+    return changes
 
 
 class _Progress:
