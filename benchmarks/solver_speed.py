@@ -4,10 +4,12 @@
     python benchmarks/solver_speed.py --scenario crossing --steps 3000   # a moving region
 
 Flies the same mission with the IPOPT reference and with the structure-exploiting solver
-(several SQP iteration counts; its QPs by the warm-started Riccati solver or, ``rti-hpipm``, by
-HPIPM), then prints, per solver: median / p95 / p99 / max wall time of one controller call in
-ms (Python overhead included: packing the scan, building the QP, solving), the median iteration
-count, the failed solves, the QPs that went to HPIPM, the minimum clearance, and the largest
+(several SQP iteration counts; its QPs by the warm-started Riccati solver, ``rti-hpipm`` by
+HPIPM, ``*-ipm`` by the chain ``riccati-ipm``: the active set within a budget, then the
+interior point on the same kernels), then prints, per solver: median / p95 / p99 / max wall
+time of one controller call in ms (Python overhead included: packing the scan, building the
+QP, solving), the median iteration count, the failed solves, the QPs that went to the interior
+point and to HPIPM, the minimum clearance, and the largest
 position deviation from the reference trajectory. The last line is the same table as JSON.
 
 With ``--save`` the table is also written to ``figures/solver_speed/<scenario>/``: what the
@@ -38,6 +40,9 @@ VARIANTS = {  # name -> (solver, controller options)
     "rti": ("rti", {"max_iter": 1}),
     "rti-damped": ("rti", {"max_iter": 1, "line_search": True}),
     "rti-hpipm": ("rti", {"max_iter": 1, "qp_solver": "hpipm"}),
+    "rti-ipm": ("rti", {"max_iter": 1, "qp_solver": "riccati-ipm"}),
+    "rti-damped-ipm": ("rti", {"max_iter": 1, "line_search": True,
+                               "qp_solver": "riccati-ipm"}),
     "sqp-2": ("rti", {"max_iter": 2}),
     "sqp-converged": ("rti", {"max_iter": 30, "step_tol": 1e-9}),
 }
@@ -89,6 +94,7 @@ def main() -> None:
                      "p99_ms": float(np.percentile(ms, 99)), "max_ms": float(ms.max()),
                      "iterations_median": float(np.median(r.iterations)),
                      "failures": r.failures, "max_dev_m": dev,
+                     "ipm_qps": r.meta.get("qp_counts", {}).get("ipm", 0),
                      "hpipm_qps": r.meta.get("qp_counts", {}).get("hpipm", 0),
                      "shortened": r.meta.get("step_counts", {}).get("shortened", 0),
                      "min_clearance_m": float(r.clearance.min())})
@@ -99,7 +105,8 @@ def main() -> None:
     print_table(rows, [("solver", "solver", "s"), ("median_ms", "median ms", ".2f"),
                        ("p95_ms", "p95 ms", ".2f"), ("p99_ms", "p99 ms", ".2f"),
                        ("max_ms", "max ms", ".2f"), ("iterations_median", "iters", ".0f"),
-                       ("failures", "failures", "d"), ("hpipm_qps", "hpipm QPs", "d"),
+                       ("failures", "failures", "d"), ("ipm_qps", "ipm QPs", "d"),
+                       ("hpipm_qps", "hpipm QPs", "d"),
                        ("shortened", "short steps", "d"),
                        ("max_dev_m", "max dev m", ".2e"),
                        ("min_clearance_m", "min clear m", ".3f")], width=14)

@@ -6,10 +6,11 @@ A 0.8 × 0.8 × 20 m column moves along +y at 1 m/s through the point where the 
 (x = 0, z = 3 m), reaching it at t = 6 s; the UAV holds its position (its target is its start;
 the passage's finish line is never reached). Each variant flies it once with the controller's
 own clock (``solve_time`` per call) and prints the per-call tail against T_s = 10 ms: median,
-p99, max and the calls over T_s, with the clearance and the QPs sent to HPIPM. The machine is
-shared and noisy (±50 % between runs): read the tail, not one number. ``--save`` writes
-``figures/solver_speed/swept_pillar/``: ``pillar.csv`` (what the flight determines: steps,
-clearance, HPIPM QPs) and ``tails.csv`` (the timings), stamped.
+p99, max and the calls over T_s, with the clearance and the QPs sent to the interior point
+(the ``riccati-ipm`` chain) and to HPIPM. The machine is shared and noisy (±50 % between
+runs): read the tail, not one number. ``--save`` writes ``figures/solver_speed/swept_pillar/``:
+``pillar.csv`` (what the flight determines: steps, clearance, the QPs per solver) and
+``tails.csv`` (the timings), stamped.
 """
 
 from __future__ import annotations
@@ -39,10 +40,13 @@ def pillar_scene() -> Scene:
                  motions=(Motion.constant((0.0, SPEED, 0.0)),))
 
 
-VARIANTS = {
-    "static (the paper's prediction)": ("static", False),
-    "oracle, full steps (the default solver)": ("oracle", False),
-    "oracle, damped RTI (the moving study's)": ("oracle", True),
+VARIANTS = {  # name -> (prediction, damped RTI, QP chain)
+    "static (the paper's prediction)": ("static", False, "riccati"),
+    "oracle, full steps (the default solver)": ("oracle", False, "riccati"),
+    "oracle, damped RTI (the moving study's)": ("oracle", True, "riccati"),
+    "static, riccati-ipm": ("static", False, "riccati-ipm"),
+    "oracle, full steps, riccati-ipm": ("oracle", False, "riccati-ipm"),
+    "oracle, damped RTI, riccati-ipm": ("oracle", True, "riccati-ipm"),
 }
 
 
@@ -53,11 +57,11 @@ def main() -> None:
     parser.add_argument("--save", action="store_true")
     args = parser.parse_args()
     scene, rows = pillar_scene(), []
-    for name, (prediction, damped) in VARIANTS.items():
+    for name, (prediction, damped, qp_solver) in VARIANTS.items():
         base = Config()
         cfg = dataclasses.replace(
             base, nmpc=dataclasses.replace(base.nmpc, prediction=prediction),
-            solver=dataclasses.replace(base.solver, line_search=damped),
+            solver=dataclasses.replace(base.solver, line_search=damped, qp_solver=qp_solver),
             simulation=dataclasses.replace(base.simulation, kind="passage",
                                            max_steps=args.steps))
         controller = make_controller(cfg)
@@ -68,6 +72,7 @@ def main() -> None:
                      "median_ms": float(np.median(ms)), "p99_ms": float(np.percentile(ms, 99)),
                      "max_ms": float(ms.max()), "over_ts": int((ms > ts_ms).sum()),
                      "min_clearance_m": float(result.clearance.min()),
+                     "ipm_qps": int(result.meta.get("qp_counts", {}).get("ipm", 0)),
                      "hpipm_qps": int(result.meta.get("qp_counts", {}).get("hpipm", 0))})
         print(pd.DataFrame(rows[-1:]).to_string(index=False), flush=True)
     table = pd.DataFrame(rows)
@@ -75,7 +80,7 @@ def main() -> None:
     if args.save:
         out = paths.figures_dir() / "solver_speed" / "swept_pillar"
         out.mkdir(parents=True, exist_ok=True)
-        flight = ["variant", "steps", "min_clearance_m", "hpipm_qps"]
+        flight = ["variant", "steps", "min_clearance_m", "ipm_qps", "hpipm_qps"]
         table[flight].to_csv(out / "pillar.csv", index=False, float_format="%.6g")
         table.drop(columns=flight[1:]).to_csv(out / "tails.csv", index=False,
                                               float_format="%.4g")

@@ -334,7 +334,10 @@ class SolverParams:
         into a period-2 oscillation that IPOPT does not show (``benchmarks/fidelity.py``).
     qp_solver : QP solver of the ``rti`` solver: ``"riccati"`` (default, a Riccati recursion
         warm-started with the previous active set, :mod:`paper_repro.solvers.riccati_qp`, HPIPM as
-        its fallback) or ``"hpipm"`` (HPIPM's interior-point method for every QP).
+        its fallback), ``"riccati-ipm"`` (the same with a budget of a few factorisations, then
+        an interior-point method on the same Riccati kernels, HPIPM last: the tail where
+        regions move across the horizon, :data:`paper_repro.solvers.rti.IPM_ACTIVE_SET_BUDGET`)
+        or ``"hpipm"`` (HPIPM's interior-point method for every QP).
     """
 
     nlp_solver: str = "rti"
@@ -344,7 +347,7 @@ class SolverParams:
 
     def __post_init__(self):
         require_choice("nlp_solver", self.nlp_solver, ("rti", "reference"))
-        require_choice("qp_solver", self.qp_solver, ("riccati", "hpipm"))
+        require_choice("qp_solver", self.qp_solver, ("riccati", "riccati-ipm", "hpipm"))
         if not isinstance(self.line_search, bool):
             raise ValueError(f"line_search must be True or False, got {self.line_search!r}")
         require_int("sqp_iterations", self.sqp_iterations, 1)

@@ -108,6 +108,38 @@ def test_riccati_and_hpipm_give_the_same_closed_loop(scene):
     assert runs["hpipm"].meta["qp_counts"] == {"riccati": 0, "hpipm": 300, "failed": 0}
 
 
+def test_the_interior_point_flies_the_same_closed_loop(scene):
+    """``riccati-ipm`` with an active-set budget of one factorisation hands every QP whose
+    active set changes to the interior point, whose polished solutions are the same QP
+    solutions: the closed loop is the Riccati solver's, and HPIPM is never called."""
+    near = dataclasses.replace(scene, start=(-18.6, 0.0, 2.0))
+    ctl = make_controller(_qp_config("riccati-ipm"))
+    ctl.qp.budget = 1
+    ipm = simulate(_qp_config("riccati-ipm"), controller=ctl, max_steps=300, progress=False,
+                   scene=near)
+    ref = simulate(_qp_config("riccati"), max_steps=300, progress=False, scene=near)
+    counts = ipm.meta["qp_counts"]
+    assert counts["ipm"] >= 1 and counts["hpipm"] == 0 and counts["failed"] == 0
+    np.testing.assert_allclose(ipm.x, ref.x, atol=1e-6)
+
+
+def test_on_a_crossing_the_interior_point_takes_what_the_active_set_gives_up():
+    """A box crossing the path (oracle prediction, full steps): the active set changes by
+    dozens of bounds from one QP to the next. The default chain leaves such QPs to HPIPM;
+    ``riccati-ipm`` solves every one on its own kernels, and flies as clear."""
+    cfg = Config(simulation=SimulationParams(scenario="crossing"),
+                 nmpc=dataclasses.replace(SMALL, prediction="oracle"))
+    runs, counts = {}, {}
+    for qp_solver in ("riccati", "riccati-ipm"):
+        ctl = RealTimeNMPC(cfg, qp_solver=qp_solver)
+        runs[qp_solver] = simulate(cfg, controller=ctl, max_steps=750, progress=False)
+        counts[qp_solver] = ctl.qp_counts
+    assert counts["riccati"]["hpipm"] > 0  # the case exists
+    assert counts["riccati-ipm"]["ipm"] > 0 and counts["riccati-ipm"]["hpipm"] == 0
+    assert runs["riccati-ipm"].failures == 0
+    assert runs["riccati-ipm"].clearance.min() > COLLISION_CLEARANCE
+
+
 def test_hpipm_is_handed_the_dense_qp_entry_for_entry():
     """The nonzeros handed to HPIPM are a fixed permutation of the linearisation's blocks: the
     sparse H and A must equal :meth:`QPLayout.dense` of the same blocks, bit for bit."""

@@ -217,3 +217,100 @@ def test_bad_dimensions_are_rejected():
         qp.solve(*(np.zeros(4),) * 8)
     with pytest.raises(ValueError, match="float64"):
         qp.solve(*(np.zeros(59, dtype=np.float32),) * 8)
+
+
+# --- the interior point on the same kernels ----------------------------------------------------
+
+def _unpolished(qp, data):
+    """The interior point's own iterate (its polish given no factorisation to spend)."""
+    import paper_repro.solvers.riccati_qp as rq
+    budget, rq.POLISH_BUDGET = rq.POLISH_BUDGET, 0
+    try:
+        return qp.interior_point(**data)
+    finally:
+        rq.POLISH_BUDGET = budget
+
+
+@pytest.mark.parametrize("nx,nu,nc", DIMS)
+def test_the_interior_point_without_bounds_solves_the_kkt_system(nx, nu, nc):
+    """No bound: the starting point is the equality-constrained QP's solution, the terminal
+    rows exact through their Schur complement (not the augmented Lagrangian)."""
+    data, (big_h, a_eq, rhs) = _random_qp(np.random.default_rng(1), nx, nu, nc, box=False)
+    res = StageQP(nx, nu, nc).interior_point(**data)
+    assert res.success and res.iterations == 0
+    nw, m = len(data["q"]), len(rhs)
+    kkt = np.block([[big_h, a_eq.T], [a_eq, np.zeros((m, m))]])
+    exact = np.linalg.solve(kkt, np.r_[-data["q"], rhs])[:nw]
+    np.testing.assert_allclose(res.z, exact, atol=1e-8)
+    np.testing.assert_allclose(a_eq @ res.z, rhs, atol=1e-10)
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("nx,nu,nc", DIMS)
+def test_the_interior_point_from_nothing_matches_a_dense_active_set_solver(nx, nu, nc, seed):
+    """Cold, with a dozen or so bounds binding: the interior point's own iterate is near the
+    optimum (within 1e-3 at ipm_tol = 1e-6: its accuracy fades as λ/s spans more than double
+    precision resolves, and driven to μ ~ 1e-9 it drifts by 1e-2 here), and the active-set
+    method it seeds polishes it to the exact one in a factorisation or two."""
+    data, (big_h, a_eq, rhs) = _random_qp(np.random.default_rng(seed), nx, nu, nc)
+    z_ref, _ = _reference(big_h, a_eq, rhs, data)
+    raw_res = _unpolished(StageQP(nx, nu, nc), data)
+    qp = StageQP(nx, nu, nc)
+    res = qp.interior_point(**data)
+    assert res.success and res.polished, res.status
+    assert 1 <= res.iterations <= 30 and res.mu < 1e-6
+    assert np.count_nonzero(qp.active) >= 5  # bounds do bind
+    np.testing.assert_allclose(res.z, z_ref, atol=1e-6)
+    assert raw_res.success and not raw_res.polished
+    np.testing.assert_allclose(raw_res.z, z_ref, atol=1e-3)
+    np.testing.assert_allclose(a_eq @ raw_res.z, rhs, atol=1e-9)
+    # the polished solution seeds the next call: the same QP again is one factorisation
+    again = qp.solve(**data)
+    assert again.success and again.outer == 1 and again.changes == 0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_interior_point_kernels_for_fixed_sizes_give_the_generic_numbers(seed):
+    """The Schur complement compiled for a constant number of terminal rows does the same
+    operations in the same order as the generic one."""
+    nx, nu, nc = DIMS[1]
+    data, _ = _random_qp(np.random.default_rng(seed), nx, nu, nc)
+    runs = [StageQP(nx, nu, nc, specialise=s).interior_point(**data) for s in (True, False)]
+    np.testing.assert_array_equal(runs[0].z, runs[1].z)
+    assert runs[0].iterations == runs[1].iterations
+
+
+def test_an_infeasible_qp_is_not_solved_by_the_interior_point():
+    nx, nu, nc = DIMS[0]
+    data, _ = _random_qp(np.random.default_rng(6), nx, nu, nc)
+    data["lb"], data["ub"] = data["lb"] * 0.0 - 0.01, data["ub"] * 0.0 + 0.01
+    data["d"] = data["d"] + 100.0
+    res = StageQP(nx, nu, nc).interior_point(**data)
+    assert not res.success and not res.polished
+
+
+@pytest.mark.parametrize("method", ["solve", "interior_point"])
+def test_the_c_code_stays_inside_its_workspace(method):
+    """The workspace each method asks for is all it writes: a tail of sentinels behind it
+    comes back untouched (a wrong size would corrupt the heap, not fail)."""
+    nx, nu, nc = DIMS[1]
+    data, _ = _random_qp(np.random.default_rng(2), nx, nu, nc)
+    qp = StageQP(nx, nu, nc, max_outer=500)
+    lib = qp._lib
+    size = (lib.stage_qp_workspace if method == "solve" else lib.stage_ipm_workspace)(
+        qp.horizon, qp.nx.ctypes.data, qp.nu.ctypes.data, nc)
+    padded = np.full(size + 64, 12345.0)
+    if method == "solve":
+        qp._work = padded
+        qp._fixed = (*qp._fixed[:5], padded.ctypes.data, padded.size, *qp._fixed[7:])
+    else:
+        qp._ipm_work = padded
+    assert getattr(qp, method)(**data).success
+    assert np.all(padded[size:] == 12345.0) and np.any(padded[:size] != 12345.0)
+
+
+def test_bad_interior_point_options_are_rejected():
+    with pytest.raises(ValueError, match="ipm_tol"):
+        StageQP([3, 3, 3], [2, 2], 1, ipm_tol=0.0)
+    with pytest.raises(ValueError, match="ipm_max_iter must be an integer >= 1"):
+        StageQP([3, 3, 3], [2, 2], 1, ipm_max_iter=0)

@@ -26,9 +26,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--solver", choices=("rti", "reference"), default="rti",
                         help="rti: Gauss-Newton real-time iteration (default); reference: "
                              "IPOPT, exact Hessian, as in the paper")
-    parser.add_argument("--qp-solver", choices=("riccati", "hpipm"), default="riccati",
-                        help="QP solver of rti: riccati (warm-started active set, default) or "
-                             "hpipm (interior point)")
+    parser.add_argument("--qp-solver", choices=("riccati", "riccati-ipm", "hpipm"),
+                        default="riccati",
+                        help="QP solver of rti: riccati (warm-started active set, default), "
+                             "riccati-ipm (the same, then an interior point on its kernels "
+                             "where the active set changes a lot) or hpipm (interior point)")
     parser.add_argument("--line-search", action="store_true",
                         help="rti: the damped real-time iteration (merit line search and "
                              "Levenberg-Marquardt damping; smoother than the paper's "

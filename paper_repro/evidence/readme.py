@@ -131,28 +131,34 @@ def solver_speed(scenario: str) -> str:
     names = {"reference": "reference (IPOPT)", "rti": "rti (the default: 1 SQP step, Riccati QP)",
              "rti-damped": "rti-damped (line search and damping)",
              "rti-hpipm": "rti-hpipm (HPIPM for every QP)", "sqp-2": "sqp-2",
+             "rti-ipm": "rti-ipm (the chain riccati-ipm)",
+             "rti-damped-ipm": "rti-damped-ipm (damped, riccati-ipm)",
              "sqp-converged": "sqp-converged"}
+    ipm = "ipm_qps" in table and bool(table["ipm_qps"].any())
     rows = [[names.get(r.solver, r.solver), fmt.ms(r.median_ms), fmt.ms(r.p95_ms), fmt.ms(r.p99_ms),
              fmt.ms(r.max_ms), f"{r.iterations_median:.0f}", f"{r.failures:,}",
+             *([f"{r.ipm_qps:,}"] if ipm else []),
              "–" if r.solver == "reference" else f"{r.hpipm_qps:,} of {r.steps:,}",
              f"{r.shortened:,}", fmt.metres(r.max_dev_m) if r.solver != "reference" else "0",
              f"{r.min_clearance_m:.3f} m"] for r in table.itertuples()]
     return fmt.markdown_table(["solver", "median ms", "p95 ms", "p99 ms", "max ms", "iterations",
-                           "failures", "QPs sent to HPIPM", "shortened steps",
+                           "failures", *(["QPs to the interior point"] if ipm else []),
+                           "QPs sent to HPIPM", "shortened steps",
                            "max deviation from IPOPT", "min clearance"], rows)
 
 
 def swept_pillar() -> str:
     """``figures/solver_speed/swept_pillar/``: the per-call tail with a pillar swept across the
-    hovering UAV, per variant, with the flight's clearance and HPIPM count beside it."""
+    hovering UAV, per variant, with the flight's clearance and the QPs per solver beside it."""
     folder = paths.figures_dir() / "solver_speed" / "swept_pillar"
     table = pd.read_csv(folder / "pillar.csv").merge(pd.read_csv(folder / "tails.csv"),
                                                      on="variant")
     rows = [[r.variant, fmt.ms(r.median_ms), fmt.ms(r.p99_ms), fmt.ms(r.max_ms),
-             f"{r.over_ts:,} of {r.steps:,}", f"{r.hpipm_qps:,}", f"{r.min_clearance_m:.3f} m"]
-            for r in table.itertuples()]
+             f"{r.over_ts:,} of {r.steps:,}", f"{r.ipm_qps:,}", f"{r.hpipm_qps:,}",
+             f"{r.min_clearance_m:.3f} m"] for r in table.itertuples()]
     return fmt.markdown_table(["variant", "median ms", "p99 ms", "max ms", "calls over T_s",
-                           "QPs sent to HPIPM", "min clearance"], rows)
+                               "QPs to the interior point", "QPs sent to HPIPM",
+                               "min clearance"], rows)
 
 
 def monte_carlo() -> str:

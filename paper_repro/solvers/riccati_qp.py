@@ -28,7 +28,11 @@ previous instant's set it usually takes a single factorisation.
 
 The result is the QP's exact solution (to the tolerances), not an approximation. When
 ``max_outer`` equality-QP solves do not suffice the call reports failure, and the caller falls
-back on an interior-point solver. The C source is ``_riccati_qp.c``; it is compiled once per
+back on an interior-point solver: HPIPM, or :meth:`StageQP.interior_point`, Mehrotra's
+predictor-corrector method on the same stage kernels (a dozen factorisations of H + Σ
+whatever the active set; the terminal rows exact through their Schur complement; its iterate
+then seeds this method, which polishes it to the exact solution, mostly in one
+factorisation). The C source is ``_riccati_qp.c``; it is compiled once per
 machine (see :mod:`paper_repro._native`), with its stage kernels also instantiated for the
 sizes of most stages (``specialise``): constant loop lengths let the compiler unroll them and
 keep their sums in registers. On the crossing's hard QPs (stages of 18 states and 4 inputs)
@@ -51,11 +55,20 @@ _D = ctypes.POINTER(ctypes.c_double)
 _ARGS = ("h", "q", "ab", "b", "c", "d", "lb", "ub")  # solve()'s arrays, in order
 STATUS = {0: "solved", 1: "active_set_not_found", 2: "infeasible_or_inconsistent",
           3: "not_positive_definite", 4: "workspace"}
+IPM_STATUS = {0: "solved", 1: "iteration_limit", 3: "not_positive_definite", 4: "workspace"}
+POLISH_BUDGET = 6
+"""Factorisations the active-set method may spend polishing an interior-point solution (on
+the swept pillar's 171 hardest QPs: one for most, three at most)."""
 
 
 class _Stats(ctypes.Structure):
     _fields_ = [("outer", ctypes.c_int), ("passes", ctypes.c_int), ("changes", ctypes.c_int),
                 ("n_active", ctypes.c_int), ("stages", ctypes.c_int)]
+
+
+class _IPMStats(ctypes.Structure):
+    _fields_ = [("iterations", ctypes.c_int), ("mu", ctypes.c_double),
+                ("residual", ctypes.c_double)]
 
 
 def _specialised_sizes(nx, nu) -> tuple[int, int] | None:
@@ -65,10 +78,12 @@ def _specialised_sizes(nx, nu) -> tuple[int, int] | None:
     return max(set(pairs), key=pairs.count) if pairs else None
 
 
-def _library(sizes: tuple[int, int] | None = None):
-    """The compiled solver; with ``sizes`` = (a, b), its stage kernels are also instantiated
-    for nx_j = nx_{j+1} = a, nu_j = b (one library per pair, cached like the others)."""
-    flags = () if sizes is None else (f"-DSQP_NX={sizes[0]}", f"-DSQP_NU={sizes[1]}")
+def _library(sizes: tuple[int, int, int] | None = None):
+    """The compiled solver; with ``sizes`` = (a, b, c), its stage kernels are also
+    instantiated for nx_j = nx_{j+1} = a, nu_j = b, and the interior point's Schur complement
+    for c terminal rows (one library per triple, cached like the others)."""
+    flags = () if sizes is None else (f"-DSQP_NX={sizes[0]}", f"-DSQP_NU={sizes[1]}",
+                                      f"-DSQP_NC={sizes[2]}")
     lib = load_library(
         "stage_qp", resources.files("paper_repro.solvers").joinpath("_riccati_qp.c").read_bytes(),
         flags=flags)
@@ -79,6 +94,11 @@ def _library(sizes: tuple[int, int] | None = None):
     ptr, i, f = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
     lib.stage_qp_solve.argtypes = [i, ptr, ptr, ptr, ptr, ptr, ptr, i, ptr, ptr, ptr, ptr, ptr,
                                    ptr, ptr, f, f, f, i, i, i, ptr, ctypes.c_size_t, ptr, ptr]
+    lib.stage_ipm_workspace.restype = ctypes.c_size_t
+    lib.stage_ipm_workspace.argtypes = lib.stage_qp_workspace.argtypes
+    lib.stage_qp_ipm.restype = ctypes.c_int
+    lib.stage_qp_ipm.argtypes = [i, ptr, ptr, ptr, ptr, ptr, ptr, i, ptr, ptr, ptr, ptr, f, i,
+                                 ptr, ctypes.c_size_t, ptr, ptr, ptr, ptr]
     return lib
 
 
@@ -91,6 +111,20 @@ class StageQPResult:
     changes: int  # active-set changes
     n_active: int
     stages: int   # stage factorisations (N + 1 per full factorisation; fewer per partial one)
+
+    @property
+    def success(self) -> bool:
+        return self.status == "solved"
+
+
+@dataclass
+class InteriorPointResult:
+    z: np.ndarray
+    status: str
+    iterations: int
+    mu: float        # mean complementarity s·λ of the interior point's last iterate
+    residual: float  # its largest residual (slacks; dynamics and terminal rows relative to |z|)
+    polished: bool   # z is the active-set method's exact solution, seeded by the iterate
 
     @property
     def success(self) -> bool:
@@ -124,7 +158,8 @@ class StageQP:
 
     def __init__(self, nx, nu, nc: int, rho: float = 1e4, eq_tol: float = 1e-10,
                  kkt_tol: float = 1e-9, max_outer: int = 40, max_passes: int = 30,
-                 reuse_factors: bool = True, specialise: bool = True):
+                 reuse_factors: bool = True, specialise: bool = True, ipm_tol: float = 1e-6,
+                 ipm_max_iter: int = 50):
         self.nx = np.ascontiguousarray(nx, dtype=np.intc)
         self.nu = np.ascontiguousarray(nu, dtype=np.intc)
         self.horizon = len(self.nu)
@@ -133,10 +168,10 @@ class StageQP:
                              f"got {len(self.nx)}")
         if np.any(self.nx < 1) or np.any(self.nu < 0):
             raise ValueError("nx must be >= 1 and nu >= 0 at every stage")
-        if not (rho > 0 and eq_tol > 0 and kkt_tol > 0):
-            raise ValueError("rho, eq_tol and kkt_tol must be > 0")
+        if not (rho > 0 and eq_tol > 0 and kkt_tol > 0 and ipm_tol > 0):
+            raise ValueError("rho, eq_tol, kkt_tol and ipm_tol must be > 0")
         for name, v, low in (("nc", nc, 0), ("max_outer", max_outer, 1),
-                             ("max_passes", max_passes, 1)):
+                             ("max_passes", max_passes, 1), ("ipm_max_iter", ipm_max_iter, 1)):
             if not (isinstance(v, (int, np.integer)) and v >= low):
                 raise ValueError(f"{name} must be an integer >= {low}, got {v!r}")
         self.nc = int(nc)
@@ -151,9 +186,11 @@ class StageQP:
             if not isinstance(v, bool):
                 raise ValueError(f"{name} must be True or False, got {v!r}")
         self.max_outer, self.max_passes = int(max_outer), int(max_passes)
+        self.ipm_tol, self.ipm_max_iter = float(ipm_tol), int(ipm_max_iter)
         self.reuse_factors = reuse_factors
         self.specialised_for = _specialised_sizes(self.nx, self.nu) if specialise else None
-        self._lib = _library(self.specialised_for)
+        self._lib = _library(None if self.specialised_for is None
+                             else (*self.specialised_for, self.nc))
         self._work = np.zeros(self._lib.stage_qp_workspace(
             self.horizon, self.nx.ctypes.data, self.nu.ctypes.data, self.nc))
         self.z = np.zeros(self.nw)
@@ -161,6 +198,8 @@ class StageQP:
         self.lam = np.zeros(self.nw)
         self.lam_c = np.zeros(self.nc)
         self._stats = _Stats()
+        self._ipm_stats = _IPMStats()
+        self._ipm_work = None  # allocated at the first interior-point call
         # The call's working copy of the active set and multipliers (kept only on success),
         # and the addresses of every buffer that never moves: a ctypes address costs about
         # a microsecond to look up, a dozen of them per call add up.
@@ -188,23 +227,19 @@ class StageQP:
         self.lam[:] = np.where(self.active != 0, lam, 0.0)
         self.lam_c[:] = 0.0
 
-    def solve(self, h, q, ab, b, c, d, lb, ub) -> StageQPResult:
+    def solve(self, h, q, ab, b, c, d, lb, ub, max_outer: int | None = None) -> StageQPResult:
         """h: H blocks, ab: [A_j B_j] blocks (each column-major, concatenated), q, b, d, lb,
         ub: vectors (±inf for no bound); c: C column-major. Arrays must be contiguous float64
-        of the sizes the structure implies; the returned ``z`` is a copy."""
-        args = (h, q, ab, b, c, d, lb, ub)
-        for name, a in zip(_ARGS, args):
-            if not (isinstance(a, np.ndarray) and a.dtype == np.float64
-                    and a.flags.c_contiguous and a.size == self._expected[name]):
-                raise ValueError(f"{name} must be a contiguous float64 array of "
-                                 f"{self._expected[name]} entries")
-        h, q, ab, b, c, d, lb, ub = (a.ctypes.data for a in args)
+        of the sizes the structure implies; the returned ``z`` is a copy. ``max_outer``
+        overrides the constructor's budget for this call."""
+        h, q, ab, b, c, d, lb, ub = self._addresses(h, q, ab, b, c, d, lb, ub)
         active, lam, lam_c = self._trial
         active[:], lam[:], lam_c[:] = self.active, self.lam, self.lam_c
         nx, nu, p_active, p_lam, p_lam_c, work, work_size, z, stats = self._fixed
         info = self._lib.stage_qp_solve(
             self.horizon, nx, nu, h, q, ab, b, self.nc, c, d, lb, ub, p_active, p_lam, p_lam_c,
-            self.rho, self.eq_tol, self.kkt_tol, self.max_outer, self.max_passes,
+            self.rho, self.eq_tol, self.kkt_tol,
+            self.max_outer if max_outer is None else int(max_outer), self.max_passes,
             int(self.reuse_factors), work, work_size, z, stats)
         s = self._stats
         if info == 0:  # keep the active set for the next call only when it is right
@@ -212,3 +247,51 @@ class StageQP:
         return StageQPResult(self.z.copy(), STATUS.get(info, f"error {info}"), s.outer,
                              s.passes, s.changes, s.n_active, s.stages)
 
+
+    def interior_point(self, h, q, ab, b, c, d, lb, ub) -> InteriorPointResult:
+        """The same QP by the interior-point method on the same Riccati kernels (Mehrotra's
+        predictor-corrector; the terminal rows exact through their Schur complement; see
+        ``stage_qp_ipm`` in ``_riccati_qp.c``): about a dozen factorisations whatever the
+        active set, where the active-set method needs one per change. Its iterate, converged
+        to ``ipm_tol`` (complementarity and relative residuals), names the active set: the
+        bounds whose barrier curvature λ/s exceeds 10⁴. That set and its multipliers seed
+        the active-set method, which then *polishes* the solution within
+        :data:`POLISH_BUDGET` factorisations (one, mostly): the QP's exact solution, as
+        :meth:`solve` gives it, rather than the interior point's approximation, whose
+        accuracy fades as λ/s spans more than double precision resolves. When the polish
+        fails, the interior point's iterate is returned (``polished`` False). Same
+        arguments as :meth:`solve`."""
+        args = (h, q, ab, b, c, d, lb, ub)
+        h, q, ab, b, c, d, lb, ub = self._addresses(*args)
+        if self._ipm_work is None:
+            self._ipm_work = np.zeros(self._lib.stage_ipm_workspace(
+                self.horizon, self.nx.ctypes.data, self.nu.ctypes.data, self.nc))
+        active, lam, _ = self._trial
+        work, st = self._ipm_work, self._ipm_stats
+        info = self._lib.stage_qp_ipm(
+            self.horizon, self.nx.ctypes.data, self.nu.ctypes.data, h, q, ab, b, self.nc, c, d,
+            lb, ub, self.ipm_tol, self.ipm_max_iter, work.ctypes.data, work.size,
+            self.z.ctypes.data, lam.ctypes.data, active.ctypes.data, ctypes.byref(st))
+        result = InteriorPointResult(self.z.copy(), IPM_STATUS.get(info, f"error {info}"),
+                                     st.iterations, st.mu, st.residual, False)
+        if info not in (0, 1):  # a factorisation failed: no iterate to start from
+            return result
+        self.active[:] = active
+        self.lam[:] = np.where(active != 0, lam, 0.0)
+        self.lam_c[:] = 0.0
+        polished = self.solve(*args, max_outer=POLISH_BUDGET)
+        if polished.success:  # exact, even from an iterate short of ipm_tol
+            result.z, result.polished, result.status = polished.z, True, "solved"
+        else:  # the next call starts from the interior point's set
+            self.active[:] = active
+            self.lam[:] = np.where(active != 0, lam, 0.0)
+        return result
+
+    def _addresses(self, *args) -> tuple[int, ...]:
+        """The addresses of solve()'s arrays, after checking each one's type and size."""
+        for name, a in zip(_ARGS, args):
+            if not (isinstance(a, np.ndarray) and a.dtype == np.float64
+                    and a.flags.c_contiguous and a.size == self._expected[name]):
+                raise ValueError(f"{name} must be a contiguous float64 array of "
+                                 f"{self._expected[name]} entries")
+        return tuple(a.ctypes.data for a in args)

@@ -63,8 +63,11 @@ class RealTimeNMPC:
     step_tol : stop iterating when max |Δw| over x, u and a_0 falls below this.
     qp_solver : ``"riccati"`` (default): :class:`~paper_repro.solvers.riccati_qp.StageQP`, a Riccati
         recursion warm-started with the previous active set, with HPIPM as the fallback when
-        it does not find the active set; ``"hpipm"``: HPIPM's interior-point method for
-        every QP. Both return the same QP solution (to their tolerances).
+        it does not find the active set; ``"riccati-ipm"``: the same active-set method with
+        a budget of :data:`IPM_ACTIVE_SET_BUDGET` factorisations, then the interior-point
+        method on the same Riccati kernels (:meth:`StageQP.interior_point`), HPIPM last;
+        ``"hpipm"``: HPIPM's interior-point method for every QP. All return the same QP
+        solution (to their tolerances).
     compile : build the linearisation as C code (cached). ``False`` uses CasADi's virtual
         machine (slower, no compiler needed) and HPIPM.
     capacities : smaller LiDAR capacities (points per region slot) compiled besides the
@@ -80,8 +83,8 @@ class RealTimeNMPC:
     Attributes
     ----------
     ocp : the problem.  layout : its :class:`QPLayout`.
-    qp_counts : QPs solved so far by each path: ``riccati``, ``hpipm`` (as the chosen solver
-        or as the fallback) and ``failed``.
+    qp_counts : QPs solved so far by each path: ``riccati``, ``ipm`` (``"riccati-ipm"``
+        only), ``hpipm`` (as the chosen solver or as the fallback) and ``failed``.
     step_counts : SQP steps taken so far: ``full`` (α = 1) and ``shortened`` (α < 1).
     """
 
@@ -98,8 +101,8 @@ class RealTimeNMPC:
         if not (line_search is None or isinstance(line_search, bool)):
             raise ValueError(f"line_search must be True, False or None (the config's), got "
                              f"{line_search!r}")
-        if qp_solver not in ("riccati", "hpipm"):
-            raise ValueError(f"qp_solver must be 'riccati' or 'hpipm', got {qp_solver!r}")
+        if qp_solver not in QP_SOLVERS:
+            raise ValueError(f"qp_solver must be one of {QP_SOLVERS}, got {qp_solver!r}")
         self.ocp = ocp = OCP(config, model)
         self.config, self.horizon = ocp.config, ocp.horizon
         if line_search is None:
@@ -209,24 +212,40 @@ class RealTimeNMPC:
 
 # --- the QP backends ---------------------------------------------------------------------------
 
+QP_SOLVERS = ("riccati", "riccati-ipm", "hpipm")
+"""The QP chains of :class:`QPChain`."""
+
+IPM_ACTIVE_SET_BUDGET = 8
+"""Factorisations the active-set method may spend before ``"riccati-ipm"`` hands the QP to
+the interior point. A warm-started QP takes one or two; where a region moves across the
+horizon the active set changes by dozens of bounds, one factorisation each (up to 170 on the
+swept pillar), while the interior point takes about a dozen whatever changed."""
+
+
 class QPChain:
-    """The QP backends in order: the warm-started Riccati solver, then HPIPM.
+    """The QP backends in order: the warm-started Riccati solver, then (``"riccati-ipm"``) the
+    interior point on its kernels, then HPIPM.
 
     Parameters
     ----------
     layout : the QP's :class:`QPLayout`.
-    qp_solver : ``"riccati"`` (Riccati first, HPIPM when it fails) or ``"hpipm"`` (HPIPM only).
+    qp_solver : ``"riccati"`` (Riccati first, HPIPM when it fails), ``"riccati-ipm"``
+        (Riccati within :data:`IPM_ACTIVE_SET_BUDGET` factorisations, then the interior
+        point, then HPIPM) or ``"hpipm"`` (HPIPM only).
 
     Attributes
     ----------
-    counts : QPs solved by ``riccati``, by ``hpipm`` (chosen or as fallback), and ``failed``.
+    counts : QPs solved by ``riccati``, by ``ipm``, by ``hpipm`` (chosen or as fallback), and
+        ``failed``.
     """
 
     def __init__(self, layout: QPLayout, qp_solver: str = "riccati"):
         self.layout = lay = layout
         n = lay.horizon
         self.riccati = (StageQP(lay.nz, [lay.nu] * n, lay.nc)
-                        if qp_solver == "riccati" else None)
+                        if qp_solver != "hpipm" else None)
+        self.budget = IPM_ACTIVE_SET_BUDGET if qp_solver == "riccati-ipm" else None
+        self._interior_next = False  # the next QP straight to the interior point
         (hr, hc, hs), (ar, ac, asrc) = lay.hessian_entries, lay.constraint_entries
         h_sp = ca.Sparsity.triplet(lay.nw, lay.nw, hr.tolist(), hc.tolist())
         a_sp = ca.Sparsity.triplet(lay.n_gap_rows + lay.nc, lay.nw, ar.tolist(), ac.tolist())
@@ -242,6 +261,8 @@ class QPChain:
         # column-major order of their sparsity (a fixed permutation of the sources).
         self._h_sp, self._a_sp, self._h_of, self._a_of = h_sp, a_sp, hs, asrc
         self.counts = {"riccati": 0, "hpipm": 0, "failed": 0}
+        if self.budget is not None:
+            self.counts["ipm"] = 0
 
     def solve(self, h, q, j, gap, eq, lb, ub) -> np.ndarray | None:
         """The step Δw of the QP min ½ΔwᵀHΔw + qᵀΔw s.t. the linearised gaps and terminal rows,
@@ -249,10 +270,25 @@ class QPChain:
         n_ab = self.layout.n_ab
         dw = None
         if self.riccati is not None:
-            res = self.riccati.solve(h, q, j[:n_ab], gap, j[n_ab:], -eq, lb, ub)
-            if res.success:
-                dw = res.z
-                self.counts["riccati"] += 1
+            args = (h, q, j[:n_ab], gap, j[n_ab:], -eq, lb, ub)
+            if not self._interior_next:
+                res = self.riccati.solve(*args, max_outer=self.budget)
+                if res.success:
+                    dw = res.z
+                    self.counts["riccati"] += 1
+            if dw is None and self.budget is not None:
+                before = self.riccati.active.copy()
+                ipm = self.riccati.interior_point(*args)
+                if ipm.success:
+                    dw = ipm.z
+                    self.counts["ipm"] += 1
+                # A set that moved by more than the budget will likely move as much at the
+                # next instant (a region crossing the horizon): go straight to the interior
+                # point then, and back to the active set once the set settles.
+                changed = int(np.count_nonzero(self.riccati.active != before))
+                self._interior_next = ipm.success and changed > self.budget
+            else:
+                self._interior_next = False
         if dw is None:
             dw = self._solve_hpipm(h, q, j, gap, eq, lb, ub)
         if dw is None or not np.isfinite(dw).all():
@@ -264,6 +300,7 @@ class QPChain:
         """Forget the Riccati solver's active set and multipliers (``counts`` keep counting)."""
         if self.riccati is not None:
             self.riccati.reset()
+        self._interior_next = False
 
     def matrices(self, h, j) -> tuple[ca.DM, ca.DM]:
         """HPIPM's sparse H (n_w, n_w) and constraint matrix A (rows, n_w), the same as
