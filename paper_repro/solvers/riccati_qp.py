@@ -56,9 +56,11 @@ _ARGS = ("h", "q", "ab", "b", "c", "d", "lb", "ub")  # solve()'s arrays, in orde
 STATUS = {0: "solved", 1: "active_set_not_found", 2: "infeasible_or_inconsistent",
           3: "not_positive_definite", 4: "workspace"}
 IPM_STATUS = {0: "solved", 1: "iteration_limit", 3: "not_positive_definite", 4: "workspace"}
-POLISH_BUDGET = 6
-"""Factorisations the active-set method may spend polishing an interior-point solution (on
-the swept pillar's 171 hardest QPs: one for most, three at most)."""
+POLISH_BUDGET = 3
+"""Factorisations the active-set method may spend polishing an interior-point solution. Of
+the swept pillar's 630 QPs that went to the interior point, 610 are polished within 3 (one
+factorisation for nearly all) and 611 within 20: a polish that fails fails whatever it may
+spend, and the interior point's own iterate is returned."""
 
 
 class _Stats(ctypes.Structure):
