@@ -312,6 +312,11 @@ def relaxed_box(lower, upper, lam: float) -> tuple[np.ndarray, np.ndarray]:
     return mid - lam * half, mid + lam * half
 
 
+QP_SOLVERS = ("riccati", "riccati-ipm", "hpipm")
+"""The QP chains of the ``rti`` solver (``SolverParams.qp_solver``,
+:class:`paper_repro.solvers.rti.QPChain`)."""
+
+
 @dataclass(frozen=True)
 class SolverParams:
     """How problem (21) is solved at each sampling instant: options of the solvers, not data of
@@ -347,7 +352,7 @@ class SolverParams:
 
     def __post_init__(self):
         require_choice("nlp_solver", self.nlp_solver, ("rti", "reference"))
-        require_choice("qp_solver", self.qp_solver, ("riccati", "riccati-ipm", "hpipm"))
+        require_choice("qp_solver", self.qp_solver, QP_SOLVERS)
         if not isinstance(self.line_search, bool):
             raise ValueError(f"line_search must be True or False, got {self.line_search!r}")
         require_int("sqp_iterations", self.sqp_iterations, 1)

@@ -4,6 +4,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from paper_repro.solvers import riccati_qp
 from paper_repro.solvers.riccati_qp import StageQP
 
 
@@ -223,12 +224,11 @@ def test_bad_dimensions_are_rejected():
 
 def _unpolished(qp, data):
     """The interior point's own iterate (its polish given no factorisation to spend)."""
-    import paper_repro.solvers.riccati_qp as rq
-    budget, rq.POLISH_BUDGET = rq.POLISH_BUDGET, 0
+    budget, riccati_qp.POLISH_BUDGET = riccati_qp.POLISH_BUDGET, 0
     try:
         return qp.interior_point(**data)
     finally:
-        rq.POLISH_BUDGET = budget
+        riccati_qp.POLISH_BUDGET = budget
 
 
 @pytest.mark.parametrize("nx,nu,nc", DIMS)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 from paper_repro.cli.args import non_negative_int, output_directory, positive_int
-from paper_repro.config import PREDICTIONS
+from paper_repro.config import PREDICTIONS, QP_SOLVERS
 from paper_repro.world.scenarios import SCENARIOS
 
 HELP = "fly one closed-loop mission and save its result"
@@ -26,8 +26,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--solver", choices=("rti", "reference"), default="rti",
                         help="rti: Gauss-Newton real-time iteration (default); reference: "
                              "IPOPT, exact Hessian, as in the paper")
-    parser.add_argument("--qp-solver", choices=("riccati", "riccati-ipm", "hpipm"),
-                        default="riccati",
+    parser.add_argument("--qp-solver", choices=QP_SOLVERS, default="riccati",
                         help="QP solver of rti: riccati (warm-started active set, default), "
                              "riccati-ipm (the same, then an interior point on its kernels "
                              "where the active set changes a lot) or hpipm (interior point)")

@@ -536,17 +536,7 @@ static double *setup(problem *pr, int n, const int *nx, const int *nu, const dou
     pr->dg = wp; wp += nw;
     pr->dlam = wp; wp += nw;
     pr->dlamc = wp; wp += nc;
-    /* C'C, the same at every full factorisation of this solve */
-    {
-        int xn = nx[n];
-        pr->ctc = wp; wp += (size_t)xn * xn;
-        for (int cc = 0; cc < xn; ++cc)
-            for (int r = 0; r < xn; ++r) {
-                double acc = 0.0;
-                for (int k = 0; k < nc; ++k) acc += c[k + r * nc] * c[k + cc * nc];
-                pr->ctc[r + cc * xn] = acc;
-            }
-    }
+    pr->ctc = wp; wp += (size_t)nx[n] * nx[n];  /* C'C: filled by the active-set method */
     /* AB is fixed during a solve: its nonzero lists and its transpose serve every
      * factorisation and pass. */
     pr->abt = wp; wp += oab[n];
@@ -582,6 +572,14 @@ int stage_qp_solve(int n, const int *nx, const int *nu, const double *h, const d
             hj += (size_t)s * s;
         }
     }
+    /* C'C, the same at every full factorisation of this solve */
+    int xn = nx[n];
+    for (int cc = 0; cc < xn; ++cc)
+        for (int r = 0; r < xn; ++r) {
+            double acc = 0.0;
+            for (int k = 0; k < nc; ++k) acc += c[k + r * nc] * c[k + cc * nc];
+            pr.ctc[r + cc * xn] = acc;
+        }
     pr.rho = rho * hmax;
     pr.eq_tol = eq_tol;
     pr.max_passes = max_passes;
@@ -740,9 +738,9 @@ size_t stage_ipm_workspace(int n, const int *nx, const int *nu, int nc) {
         if (j < n) nb += nx[j + 1];
     }
     /* the shared part; sl, su, ll, lu, dsl, dsu, dll, dlu, tl, tu, zn, z, lo, up, 1/sl,
-     * 1/su, the masks of the bounded sides and the
-     * terminal correction dz (nw each); zero b; -S and nu; X_0 and the K~_j (nc x nx_0, at
-     * most nc x nw); Pi_j, Pi_{j+1} and E of the Schur complement */
+     * 1/su, the masks of the bounded sides and the terminal correction dz (nw each); zero
+     * b; -S and nu; X_0 and the K~_j (nc x nx_0, at most nc x nw); Pi_j, Pi_{j+1} and E of
+     * the Schur complement */
     int mxs = 0;
     for (int j = 0; j <= n; ++j) {
         int s = nx[j] + (j < n ? nu[j] : 0);

@@ -249,7 +249,6 @@ class StageQP:
         return StageQPResult(self.z.copy(), STATUS.get(info, f"error {info}"), s.outer,
                              s.passes, s.changes, s.n_active, s.stages)
 
-
     def interior_point(self, h, q, ab, b, c, d, lb, ub) -> InteriorPointResult:
         """The same QP by the interior-point method on the same Riccati kernels (Mehrotra's
         predictor-corrector; the terminal rows exact through their Schur complement; see

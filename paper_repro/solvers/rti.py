@@ -43,7 +43,7 @@ import time
 import casadi as ca
 import numpy as np
 
-from paper_repro.config import Config
+from paper_repro.config import QP_SOLVERS, Config
 from paper_repro.problem.ocp import OCP, NMPCSolution
 from paper_repro.problem.scan import check_visible
 from paper_repro.solvers.linearisation import LinearisationLadder, QPLayout
@@ -211,9 +211,6 @@ class RealTimeNMPC:
 
 
 # --- the QP backends ---------------------------------------------------------------------------
-
-QP_SOLVERS = ("riccati", "riccati-ipm", "hpipm")
-"""The QP chains of :class:`QPChain`."""
 
 IPM_ACTIVE_SET_BUDGET = 4
 """Factorisations the active-set method may spend before ``"riccati-ipm"`` hands the QP to
