@@ -4,7 +4,7 @@
 
 Writes ``figures/studies/moving_obstacles_definition/`` (table and study.json, runs cached in
 ``results/runs/``) and prints the collision, completion and stall rates and the median
-clearance and thrust variation per prediction.
+clearance and thrust variation per barrier (the paper's margin, the design's) and prediction.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import dataclasses
 from paper_repro import Config, paths
 from paper_repro import studies as S
 from paper_repro.config import PREDICTIONS, BarrierParams
-from paper_repro.evidence.golden import stamp
+from paper_repro.evidence.golden import layer_of, stamp
 from paper_repro.studies.catalogue import Study
 
 
@@ -37,8 +37,9 @@ def main() -> None:
     result = S.run_study(study, out=paths.figures_dir() / "studies" / study.name,
                          workers=args.workers, runs_dir=paths.results_dir() / "runs",
                          force=args.force)
-    stamp(result.directory, "python benchmarks/moving_definition_form.py")
-    table = result.table.groupby("prediction")
+    stamp(result.directory, "python benchmarks/moving_definition_form.py",
+          layer_of(*(s.config for s in specs)))
+    table = result.table.groupby(["barrier", "prediction"])
     print(table[["collision", "completed", "stalled"]].mean())
     print(table[["min_clearance_m", "tv_u_rate_N_per_s"]].median())
 

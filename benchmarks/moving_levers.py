@@ -3,7 +3,9 @@
     python benchmarks/moving_levers.py [--seeds 0-29] [--levers NAME ...] [--workers 2] [--save]
 
 Each lever is a change of the moving study's configuration (the damped RTI, prediction oracle
-and kalman, both metrics); every lever flies the same random crossings through the run cache.
+and kalman, both metrics), on the default QP chain (the study flies ``riccati-ipm``; the
+screening was not flown again); every lever flies the same random crossings through the run
+cache.
 Prints, per lever, prediction and metric: collisions (clearance < 0.35 m), minimum clearance,
 completion, chattering (total variation of u per second) and the solve-time tail. ``--save``
 writes ``figures/studies/moving_levers/levers.csv`` (what the flights determine) and

@@ -118,7 +118,8 @@ TIMINGS = ("median_ms", "p95_ms", "p99_ms", "max_ms")
 
 
 def _save(rows: list[dict], scenario: str) -> None:
-    """The flight columns (byte-stable) and the timings, apart; then the stamp."""
+    """The flight columns (byte-stable) and the timings, apart; then the stamp (of the
+    ``"riccati-ipm"`` layer when a variant flies that chain)."""
     out = figures_dir() / "solver_speed" / scenario
     out.mkdir(parents=True, exist_ok=True)
     table = pd.DataFrame(rows)
@@ -126,7 +127,9 @@ def _save(rows: list[dict], scenario: str) -> None:
                                              float_format="%.6g")
     table[["solver", *TIMINGS]].to_csv(out / "speed_timings.csv", index=False,
                                        float_format="%.4g")
-    stamp(out, " ".join(["python", "benchmarks/solver_speed.py", *sys.argv[1:]]))
+    ipm = any(VARIANTS[row["solver"]][1].get("qp_solver") == "riccati-ipm" for row in rows)
+    stamp(out, " ".join(["python", "benchmarks/solver_speed.py", *sys.argv[1:]]),
+          "riccati-ipm" if ipm else "")
 
 
 def _cpu_name() -> str:

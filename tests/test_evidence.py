@@ -74,11 +74,12 @@ def _rewrite_golden(folder, name):
          "layers": layers}))
 
 
-@pytest.mark.parametrize("layer", ["map", "guide"])
+@pytest.mark.parametrize("layer", ["map", "guide", "riccati-ipm"])
 def test_a_change_to_a_layer_retires_only_what_uses_it(tmp_path, monkeypatch, layer):
     """A layer's golden flight moved: the runs and evidence sets that use the layer, or one
     built on it, go stale (the map's change retires the guided runs too, the guide's leaves
-    the map-only runs alone); the others keep their keys and stamps."""
+    the map-only runs alone, the interior point's only the runs that solve with it, mapped or
+    not); the others keep their keys and stamps."""
     import dataclasses
 
     shutil.copytree(paths.golden_dir(), tmp_path / "figures" / "golden")
@@ -86,25 +87,43 @@ def test_a_change_to_a_layer_retires_only_what_uses_it(tmp_path, monkeypatch, la
     mapped = dataclasses.replace(Config(), sensor=dataclasses.replace(Config().sensor,
                                                                       map_voxel=0.5))
     guided = dataclasses.replace(mapped, guide=GuideParams(planner="grid"))
-    assert [evidence.layer_of(*c) for c in ((Config(),), (Config(), mapped),
-                                            (mapped, guided))] == ["", "map", "guide"]
-    sets = {"": "studies/monte_carlo", "map": "studies/sensor_noise", "guide": "guidance_cost"}
+
+    def ipm(cfg):
+        return dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver,
+                                                                   qp_solver="riccati-ipm"))
+
+    configs = {"": Config(), "map": mapped, "guide": guided, "riccati-ipm": ipm(Config()),
+               "map+riccati-ipm": ipm(mapped)}
+    assert [evidence.layer_of(*c) for c in ((Config(),), (Config(), mapped), (mapped, guided),
+                                            (Config(), ipm(Config())), (guided, ipm(mapped)))
+            ] == ["", "map", "guide", "riccati-ipm", "guide+riccati-ipm"]
+    assert all(evidence.layer_of(cfg) == used for used, cfg in configs.items())
+    sets = {"": "studies/monte_carlo", "map": "studies/sensor_noise", "guide": "guidance_cost",
+            "riccati-ipm": "studies/moving_obstacles", "map+riccati-ipm": "guide_filter"}
     for used, name in sets.items():
         (tmp_path / "figures" / name).mkdir(parents=True)
         evidence.stamp(tmp_path / "figures" / name, "test", used)
-    configs = {"": Config(), "map": mapped, "guide": guided}
     keys = {used: run_key(cfg, 100, "fp") for used, cfg in configs.items()}
     assert not set(sets.values()) & set(evidence.stale_evidence())
-    hashes = {used: evidence.golden_hash(used) for used in evidence.LAYERS}
+    hashes = {used: evidence.golden_hash(used) for used in configs}
+    assert len(set(hashes.values())) == len(hashes)
 
     moved = next(f.name for f in evidence.GOLDEN_FLIGHTS if f.layer == layer)
     _rewrite_golden(tmp_path / "figures" / "golden", moved)
-    retired = set(evidence.LAYERS[evidence.LAYERS.index(layer):])
+    retired = {used for used in configs if layer in evidence.covered_layers(used)}
+    assert retired >= {layer} and "" not in retired
     stale = set(evidence.stale_evidence())
     for used, cfg in configs.items():
         assert (evidence.golden_hash(used) != hashes[used]) == (used in retired)
         assert (run_key(cfg, 100, "fp") != keys[used]) == (used in retired)
         assert (sets[used] in stale) == (used in retired)
+
+
+def test_an_unknown_layer_is_refused():
+    with pytest.raises(ValueError, match="layer must be"):
+        evidence.golden_hash("lidar")
+    with pytest.raises(ValueError, match="layer must be"):
+        evidence.covered_layers("map+")
 
 
 def test_a_study_of_map_runs_stamped_with_the_core_hash_is_stale(tmp_path, monkeypatch):

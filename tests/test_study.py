@@ -74,6 +74,12 @@ def test_the_moving_study_flies_each_crossing_with_every_prediction_and_the_desi
     assert all("equilibrium_lookahead" not in s.config.key_dict()["barrier"] for s in paper)
     assert len({s.name for s in study.specs}) == len(study.specs)
     assert study.specs[0].scene().is_moving
+    # The damped RTI on the interior-point chain; its runs and its stamp carry that layer's
+    # golden hash, so a change to the interior point retires them.
+    from paper_repro.evidence.golden import layer_of
+
+    assert all(s.config.solver.line_search for s in study.specs)
+    assert {layer_of(s.config) for s in study.specs} == {"riccati-ipm"}
     # One controller per worker and configuration: the prediction and the barrier are part of
     # the problem (the scan carries velocities), the scene and the seed are not.
     keys = {(lab["barrier"], lab["prediction"]): S.controller_key(s.config)

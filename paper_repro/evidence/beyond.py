@@ -110,6 +110,31 @@ def moving_obstacles() -> str:
                            "steps breaking (15) with a region in view, median"], rows)
 
 
+def moving_obstacles_tails() -> str:
+    """``figures/studies/moving_obstacles/timings.csv`` (the machine's): the controller's
+    solve-time tail per barrier and prediction, each run's p99 and max call against T_s."""
+    from paper_repro import Config
+
+    folder = paths.figures_dir() / "studies" / "moving_obstacles"
+    runs = pd.read_parquet(folder / "table.parquet", columns=["name", "barrier", "prediction",
+                                                              "metric"])
+    times = runs.merge(pd.read_csv(folder / "timings.csv"), on="name")
+    ts_ms = 1e3 * Config().nmpc.ts
+    rows = []
+    for (barrier, prediction), group in times.groupby(["barrier", "prediction"], sort=False):
+        by = {m: group[group["metric"] == m] for m in ("smooth", "euclidean")}
+        rows.append([barrier, prediction] + [
+            " / ".join(fn(by[m]) for m in by) for fn in (
+                lambda g: fmt.ms(g["solve_p99_ms"].median()),
+                lambda g: fmt.ms(g["solve_p99_ms"].max()),
+                lambda g: fmt.ms(g["solve_max_ms"].max()),
+                lambda g: f"{int((g['solve_max_ms'] > ts_ms).sum())}/{len(g)}")])
+    return fmt.markdown_table(
+        ["barrier", "prediction", "p99 of a run's calls, median (smoothed / Euclidean), ms",
+         "largest p99, ms", "largest call, ms", f"runs with a call over T_s = {ts_ms:g} ms"],
+        rows)
+
+
 def avoidability() -> str:
     """``figures/studies/avoidability/avoidability.csv``: the crossings a point mass with the
     quadrotor's bounds and full foresight flies clear."""
@@ -128,12 +153,26 @@ def avoidability() -> str:
     k_p = int((paced["at_pace_outcome"] == "avoidable").sum())
     return fmt.markdown_table(
         ["crossings", "avoidable", "no passage found", "clearance of the passages found",
-         "first guess that found them", "avoidable within the study's time"],
+         "first guess that found them", "avoidable within the controller's time"],
         [[f"{n}", f"{k}/{n} [{100 * ci.low:.0f}, {100 * ci.high:.0f}] %", f"{n - k}",
           f"{found['clearance_m'].min():.2f} to {found['clearance_m'].max():.2f} m",
           ", ".join(f"{g} ({c})" for g, c in found["guess"].value_counts().items()),
-          f"{k_p}/{len(paced)} (the study's crossings; closest approach "
+          f"{k_p}/{len(paced)} (the crossings the study and the held-out set flew; closest "
+          "approach "
           f"{paced['at_pace_clearance_m'].min():.2f} m)"]]) + verdict
+
+
+def moving_heldout() -> str:
+    """``figures/studies/moving_heldout/heldout.csv``: the design barrier on crossings it was
+    not chosen on."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "moving_heldout" / "heldout.csv")
+    rows = [[r.prediction, r.metric,
+             fmt.rate_of(r.collisions / r.runs, r.collision_low, r.collision_high,
+                         int(r.collisions), int(r.runs)),
+             f"{r.min_clearance_m:.3f} m", f"{int(r.completed)}/{int(r.runs)}",
+             f"{int(r.failed_solves):,}"] for r in table.itertuples()]
+    return fmt.markdown_table(["prediction", "metric", "collisions", "closest approach",
+                               "completed", "failed solves"], rows)
 
 
 def moving_levers() -> str:
@@ -213,6 +252,25 @@ def _offered(presets: dict) -> str:
             + ".")
 
 
+def _heldout_table() -> pd.DataFrame:
+    return pd.read_csv(paths.figures_dir() / "studies" / "moving_heldout" / "heldout.csv")
+
+
+def _heldout_crossings() -> int:
+    return int(_heldout_table()["runs"].max())
+
+
+def _heldout_collisions() -> str:
+    table = _heldout_table().set_index(["prediction", "metric"])
+    return "; ".join(
+        f"{'Kalman' if prediction == 'kalman' else prediction} " + ", ".join(
+            f"{label} " + fmt.rate_of(r.collisions / r.runs, r.collision_low, r.collision_high,
+                                      int(r.collisions), int(r.runs))
+            for metric, label in (("smooth", "smoothed"), ("euclidean", "Euclidean"))
+            for r in [table.loc[(prediction, metric)]])
+        for prediction in dict.fromkeys(table.index.get_level_values(0)))
+
+
 def overview() -> str:
     """Beyond the paper, for the README: the moving crossings with the paper's barrier and the
     design (``moving_obstacles_rates.csv``), whether they were avoidable (``avoidability.csv``),
@@ -244,7 +302,9 @@ def overview() -> str:
              "`avoidability.csv`"],
             ["... with the design barrier for moving regions (`studies.catalogue.MOVING_DESIGN`)",
              f"collisions over {n} crossings: oracle {collided('design', 'oracle')}; Kalman "
-             f"{collided('design', 'kalman')}", "`moving_obstacles_rates.csv`"]]
+             f"{collided('design', 'kalman')}. On {_heldout_crossings()} crossings it was not "
+             f"chosen on: {_heldout_collisions()}",
+             "`moving_obstacles_rates.csv`, `heldout.csv`"]]
     rates = tuned[tuned["kind"] == "rate"].set_index(["setup", "event"])
     rows.append(["tuned parameters, held-out passages", "; ".join(
         f"{s}: completed {fmt.rate(rates.loc[(s, 'completed')])}, collisions "

@@ -7,11 +7,12 @@ makes. Two things enforce it.
   mission with each metric, the encounter with each metric, a random passage, the moving
   ``crossing``, the IPOPT reference at one instant-rich window, the ground robot; in the
   ``"map"`` layer (:data:`LAYERS`), the noisy LiDAR through the local map; in the
-  ``"guide"`` layer, the same with the guide). Their states and inputs are committed in
-  ``figures/golden/<name>.npy`` and ``figures/golden/golden.json`` holds the SHA-256 of each
-  file and of the whole set, the *golden hash*. ``tests/test_evidence.py`` flies them and
-  compares against the committed arrays (:func:`check_golden`, :data:`POSITION_TOLERANCE`):
-  a change of code that moves a flight fails there.
+  ``"guide"`` layer, the same with the guide; in the ``"riccati-ipm"`` layer, the crossing
+  with the interior-point QP chain the moving-obstacle study flies). Their states and inputs
+  are committed in ``figures/golden/<name>.npy`` and ``figures/golden/golden.json`` holds the
+  SHA-256 of each file and of the whole set, the *golden hash*. ``tests/test_evidence.py``
+  flies them and compares against the committed arrays (:func:`check_golden`,
+  :data:`POSITION_TOLERANCE`): a change of code that moves a flight fails there.
 * **Evidence stamps**: each committed evidence set (``figures/``, the ``paper-timeline``
   preset, the timeline flights, every study folder, the tuning outputs, the fidelity table)
   has an ``evidence.json`` that records the golden hash it was made with (:func:`stamp`,
@@ -23,7 +24,8 @@ makes. Two things enforce it.
   of that layer and of the layers built on it: the runs and sets that read the local map carry the
   ``"map"`` hash and the guided ones the ``"guide"`` hash, so a change to the map retires
   them all, a change to the guide only the guided ones, and every other run and set stays as
-  it is.
+  it is. Likewise the runs that solve their QPs with the ``"riccati-ipm"`` chain carry that
+  layer's hash.
 
 A pure refactor leaves every golden flight within tolerance: the committed files, the hash,
 the stamps and the cache keys stay as they are, and nothing needs re-flying.
@@ -66,9 +68,11 @@ class GoldenFlight:
     line_search : the damped real-time iteration (``SolverParams.line_search``).
     start : ``(other flight, step)``: start from the state that flight reached at that step
         (a window rich in obstacles, flown with a slow solver); ``None``: the scene's start.
+    qp_solver : the real-time iteration's QP chain (``SolverParams.qp_solver``).
     vehicle : ``"quadrotor"`` or ``"unicycle"`` (the ground robot's planar L-wall).
-    layer : ``""`` (the core), ``"map"`` (the noisy LiDAR read through the local map) or
-        ``"guide"`` (the same with the guide) (:data:`LAYERS`).
+    layer : ``""`` (the core), ``"map"`` (the noisy LiDAR read through the local map),
+        ``"guide"`` (the same with the guide) or ``"riccati-ipm"`` (the interior-point QP
+        chain) (:data:`LAYERS`).
     """
 
     name: str
@@ -81,6 +85,7 @@ class GoldenFlight:
     solver: str = "rti"
     prediction: str = "static"
     line_search: bool = False
+    qp_solver: str = "riccati"
     start: tuple[str, int] | None = None
     vehicle: str = "quadrotor"
     layer: str = ""
@@ -111,7 +116,8 @@ class GoldenFlight:
         if self.layer == "guide":
             cfg = dataclasses.replace(cfg, guide=GuideParams(planner="grid"))
         return dataclasses.replace(cfg, solver=dataclasses.replace(
-            cfg.solver, nlp_solver=self.solver, line_search=self.line_search))
+            cfg.solver, nlp_solver=self.solver, line_search=self.line_search,
+            qp_solver=self.qp_solver))
 
 
 GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
@@ -129,9 +135,9 @@ GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
     GoldenFlight("passage-smooth-s003", "a random passage (nonconvex regions, finish line)",
                  scenario="random", kind="passage", seed=3, steps=600),
     GoldenFlight("crossing-smooth", "a region moving across the line, predicted by the "
-                 "oracle (velocities in the scan), the damped RTI (as the moving-obstacle "
-                 "studies fly)", scenario="crossing", steps=900, prediction="oracle",
-                 line_search=True),
+                 "oracle (velocities in the scan), the damped RTI on the default QP chain "
+                 "(the active set, HPIPM where it runs out: 12 QPs here)", scenario="crossing",
+                 steps=900, prediction="oracle", line_search=True),
     GoldenFlight("ground-robot-smooth", "the unicycle round the L-wall (another vehicle, "
                  "another output dimension)", steps=200, vehicle="unicycle"),
     GoldenFlight("passage-map-noisy-s010", "the first 15 s of a random passage with the "
@@ -142,25 +148,51 @@ GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
                  "map points in range, the guide re-planning round what the map has "
                  "confirmed, its set-point filtered",
                  scenario="random", kind="passage", seed=10, steps=1500, layer="guide"),
+    GoldenFlight("crossing-smooth-ipm", "the crossing with the interior-point QP chain, as "
+                 "the moving-obstacle study flies it (the active set, then the interior "
+                 "point where it runs out)", scenario="crossing", steps=900,
+                 prediction="oracle", line_search=True, qp_solver="riccati-ipm",
+                 layer="riccati-ipm"),
 )
 
-LAYERS = ("", "map", "guide")
-"""The layers of the golden flights, each built on the ones before it. The core (``""``)
-covers what every run flies; the ``"map"`` layer the local map (``sensor.map_voxel`` > 0),
-and the ``"guide"`` layer the guide on the map (``guide.planner`` other than ``"none"``),
-which only some runs use. A layer's hash covers its flights and those of the layers before
-it. A run's cache key and an evidence set's stamp hold the golden hash of the layer they use
+LAYERS = ("", "map", "guide", "riccati-ipm")
+"""The layers of the golden flights. The core (``""``) covers what every run flies; the
+``"map"`` layer the local map (``sensor.map_voxel`` > 0), the ``"guide"`` layer the guide on
+the map (``guide.planner`` other than ``"none"``), and the ``"riccati-ipm"`` layer the
+interior-point QP chain (``solver.qp_solver``), which only some runs use. A layer's hash
+covers its flights and those of the layers it is built on (:data:`LAYER_BASES`). A run's
+cache key and an evidence set's stamp hold the golden hash of the layers they use
 (:func:`golden_hash`, :func:`layer_of`): a change to the map retires the cached runs and
-stamps that use the map (guided or not), a change to the guide those that use the guide, and
-the others stay as they are."""
+stamps that use the map (guided or not), a change to the guide those that use the guide, a
+change to the interior point those that use it, and the others stay as they are."""
+
+LAYER_BASES = {"": (), "map": ("",), "guide": ("", "map"), "riccati-ipm": ("",)}
+"""Layer → the layers it is built on."""
 
 
 def layer_of(*configs) -> str:
-    """The golden layer runs of ``configs`` use: ``"guide"`` when any is guided, else
-    ``"map"`` when any reads the local map, else the core ``""``."""
+    """The golden layers runs of ``configs`` use, joined by ``"+"``: ``"guide"`` when any is
+    guided, else ``"map"`` when any reads the local map; and ``"riccati-ipm"`` when any solves
+    its QPs with that chain. The core ``""`` when none of these."""
+    used = []
     if any(c.guide.planner != "none" for c in configs):
-        return "guide"
-    return "map" if any(c.sensor.map_voxel > 0 for c in configs) else ""
+        used.append("guide")
+    elif any(c.sensor.map_voxel > 0 for c in configs):
+        used.append("map")
+    if any(c.solver.qp_solver == "riccati-ipm" for c in configs):
+        used.append("riccati-ipm")
+    return "+".join(used)
+
+
+def covered_layers(layer: str) -> set[str]:
+    """The layers whose flights ``layer``'s hash covers: its parts (``"+"``-joined names of
+    :data:`LAYERS`) and the layers they are built on. ``ValueError`` for an unknown name."""
+    parts = layer.split("+") if layer else []
+    unknown = [p for p in parts if p not in LAYERS[1:]]
+    if unknown:
+        raise ValueError(f"layer must be '' or names of {LAYERS[1:]} joined by '+', "
+                         f"got {layer!r}")
+    return {""}.union(*({p, *LAYER_BASES[p]} for p in parts))
 
 
 def fly_golden(flight: GoldenFlight, flown: dict | None = None) -> np.ndarray:
@@ -237,16 +269,20 @@ def write_golden(names=None, force: bool = False) -> list[dict]:
 
 
 def golden_hash(layer: str = "") -> str:
-    """The committed golden hash of ``layer`` (:data:`LAYERS`; ``figures/golden/golden.json``):
-    the core flights' for ``""``, those of the layer and the layers before it for another, or
-    ``"none"`` before the golden flights exist."""
-    if layer not in LAYERS:
-        raise ValueError(f"layer must be one of {LAYERS}, got {layer!r}")
+    """The committed golden hash of ``layer`` (:data:`LAYERS`, or several joined by ``"+"``,
+    :func:`layer_of`; ``figures/golden/golden.json``): the core flights' for ``""``, those of
+    the layers it covers (:func:`covered_layers`) for another, or ``"none"`` before the golden
+    flights exist."""
+    covered_layers(layer)
     path = golden_dir() / "golden.json"
     if not path.is_file():
         return "none"
     stored = json.loads(path.read_text())
-    return stored["layers"][layer] if layer else stored["hash"]
+    if not layer:
+        return stored["hash"]
+    if layer in stored["layers"]:
+        return stored["layers"][layer]
+    return set_hash(_layer_files(stored["files"], layer))
 
 
 def recomputed_golden_hash(layer: str = "") -> str:
@@ -259,8 +295,9 @@ def recomputed_golden_hash(layer: str = "") -> str:
 
 
 def _layer_files(files: dict, layer: str) -> dict:
-    """The files of the flights of ``layer`` and of the layers before it."""
-    wanted = {f.name for f in GOLDEN_FLIGHTS if LAYERS.index(f.layer) <= LAYERS.index(layer)}
+    """The files of the flights of the layers ``layer`` covers (:func:`covered_layers`)."""
+    covered = covered_layers(layer)
+    wanted = {f.name for f in GOLDEN_FLIGHTS if f.layer in covered}
     return {name: digest for name, digest in files.items() if name in wanted}
 
 
@@ -277,6 +314,7 @@ EVIDENCE_SETS = (
     "studies/sensing_window", "studies/moving_obstacles", "studies/moving_obstacles_definition",
     "studies/avoidability",  # benchmarks/avoidability.py --save
     "studies/moving_levers",  # benchmarks/moving_levers.py --save
+    "studies/moving_heldout",  # benchmarks/moving_heldout.py --save
     "studies/guidance",  # study guidance
     "guidance_cost",  # benchmarks/guidance_cost.py --save
     "guide_filter",  # benchmarks/guide_filter.py --save
@@ -286,8 +324,8 @@ EVIDENCE_SETS = (
 
 
 def stamp(folder, made_by: str, layer: str = "") -> Path:
-    """Write ``folder/evidence.json``: the golden hash of ``layer`` (:data:`LAYERS`: the
-    layer the set's runs use) the set was made with, and the command that made it. Call it
+    """Write ``folder/evidence.json``: the golden hash of ``layer`` (:func:`layer_of`: the
+    layers the set's runs use) the set was made with, and the command that made it. Call it
     last, after every file of the set is written."""
     out = Path(folder) / "evidence.json"
     record = {"golden": golden_hash(layer), "made_by": made_by}
@@ -332,11 +370,19 @@ def stale_evidence() -> list[str]:
             continue
         layer, study = stamped_layer(folder), folder / "study.json"
         meta = json.loads(study.read_text()) if study.is_file() else None
-        if (layer not in LAYERS or stamped_hash(folder) != golden_hash(layer)
+        if (not _known_layer(layer) or stamped_hash(folder) != golden_hash(layer)
                 or meta is not None and (_study_layer(meta) != layer
                                          or meta["golden"] != golden_hash(layer))):
             stale.append(name or "figures")
     return stale
+
+
+def _known_layer(layer: str) -> bool:
+    try:
+        covered_layers(layer)
+    except ValueError:
+        return False
+    return True
 
 
 def _study_layer(meta: dict) -> str:

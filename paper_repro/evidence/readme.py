@@ -307,7 +307,7 @@ def throughput() -> str:
 
 MACHINE_BLOCKS = frozenset({"regeneration", "ground_robot", "solver_speed_encounter",
                             "solver_speed_crossing", "throughput", "swept_pillar",
-                            "guidance_cost"})
+                            "guidance_cost", "moving_obstacles_tails"})
 """Blocks quoting what the machine measured: rendered like the others, never asserted (they
 change with every regeneration)."""
 
@@ -321,7 +321,9 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "eta_sweep": eta_sweep, "sensor_noise": sensor_noise, "sensing_window": sensing_window,
     "sensor_noise_cost": beyond.sensor_noise_cost, "guidance": beyond.guidance,
     "guidance_cost": beyond.guidance_cost, "guide_filter": beyond.guide_filter,
-    "moving_obstacles": beyond.moving_obstacles, "avoidability": beyond.avoidability,
+    "moving_obstacles": beyond.moving_obstacles,
+    "moving_obstacles_tails": beyond.moving_obstacles_tails, "avoidability": beyond.avoidability,
+    "moving_heldout": beyond.moving_heldout,
     "moving_levers": beyond.moving_levers, "timeline": beyond.timeline,
     "tuning": beyond.tuning, "beyond": beyond.overview}
 """Every generated block of the README, by name."""
