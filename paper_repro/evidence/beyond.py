@@ -113,7 +113,7 @@ def moving_obstacles() -> str:
 def moving_obstacles_tails() -> str:
     """``figures/studies/moving_obstacles/timings.csv`` (the machine's): the controller's
     solve-time tail per barrier and prediction, each run's p99 and max call against T_s."""
-    from paper_repro import Config
+    from paper_repro.config import Config
 
     folder = paths.figures_dir() / "studies" / "moving_obstacles"
     runs = pd.read_parquet(folder / "table.parquet", columns=["name", "barrier", "prediction",
