@@ -11,7 +11,8 @@ in, by the frames of its stack:
 * ``linearisation (C)``: the generated linearisation; ``linearisation (Python)``: filling its
   buffers, packing the scan;
 * ``controller (Python)``: the rest of the controller call (guess, bounds, update);
-* ``LiDAR``, ``plant``, ``clearance`` (the true distance the loop logs), ``logging``;
+* ``LiDAR``, ``plant``, ``clearance`` (the true distance the loop logs, measured for
+  every step at once after the flight), ``logging``;
 * ``loop``: the rest of ``simulate``'s step.
 
 ms per step = share of the loop's samples × the flight's wall time per step. Then, in the same
@@ -46,7 +47,7 @@ import pandas as pd  # noqa: E402
 PARTS = (  # (part, test on the frames of one sample: its stack, root first)
     ("LiDAR", lambda f: _has(f, "Lidar.scan")),
     ("plant", lambda f: _has(f, "Plant.step")),
-    ("clearance", lambda f: _has(f, "_TrueClearance.__call__")),
+    ("clearance", lambda f: _has(f, "_TrueClearance.along")),
     ("logging", lambda f: _has(f, "_Log.record")),
     ("QP (C)", lambda f: _last_ours(f).startswith("StageQP.solve") and _line(f) == _QP_LINE),
     ("QP (Python)", lambda f: _has(f, "StageQP.solve") or _has(f, "QPChain.solve")),

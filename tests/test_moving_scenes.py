@@ -391,6 +391,30 @@ def test_clearance_is_measured_to_the_true_positions(approach_runs):
                                       result.x[k, :3])[0])
 
 
+@pytest.mark.parametrize("moving", [True, False])
+def test_the_clearance_of_a_flight_is_the_brute_force_distance_at_each_step(moving):
+    """``_TrueClearance.along`` (the loop measures every step at once, after the flight): the
+    distance to the clouds where they are at each time, NaN at a position that is not
+    finite (a diverged plant), for a moving scene and a static one."""
+    from paper_repro.sim.loop import _TrueClearance
+
+    scene = _approaching_scene()
+    if not moving:
+        scene = dataclasses.replace(scene, motions=None)
+    rng = np.random.default_rng(5)
+    y = rng.uniform(-2.0, 8.0, (40, 3))
+    y[7] = np.nan
+    t = np.linspace(0.0, 4.0, len(y))
+    got = _TrueClearance(scene).along(y, t)
+    for k in range(len(y)):
+        if k == 7:
+            assert np.isnan(got[k])
+            continue
+        clouds = scene.clouds_at(t[k]) if moving else scene.clouds
+        expected = min(np.linalg.norm(c - y[k], axis=1).min() for c in clouds)
+        assert got[k] == pytest.approx(expected, abs=1e-12)
+
+
 def test_prediction_decides_what_the_controller_gets(approach_runs):
     """static: ``solve`` is called without ``velocities`` (as before moving regions); oracle:
     the true velocity of every region at every step; kalman: one finite (3,) estimate per
