@@ -22,9 +22,9 @@ end), ``parallel_efficiency`` (= the latter / 2 / the former), ``all_in_ms_per_s
 Then, one process, the scene families of the studies (``--families``): the paper mission
 (``--steps`` steps), random passages (the first ``--passages`` of ``monte_carlo``) and random
 crossings (the first ``--crossings`` of ``moving_obstacles`` with the oracle prediction and
-the damped RTI they fly), each with both metrics. Per family and metric: runs, steps, all-in
-steps per second and ms per step, and the controller call's median, p99, p99.9 and max
-against T_s. The JSON line gains ``families`` (one entry per row).
+the damped RTI on the ``riccati-ipm`` QP chain they fly), each with both metrics. Per family
+and metric: runs, steps, all-in steps per second and ms per step, and the controller call's
+median, p99, p99.9 and max against T_s. The JSON line gains ``families`` (one entry per row).
 
 ``--save`` writes both tables to ``figures/throughput/`` (``parallel.csv``, ``families.csv``:
 this machine's times, expected to change), then the stamp; ``environment.md`` formats its
@@ -132,7 +132,8 @@ def main() -> None:
         print("# a 10,000-scene Monte Carlo (x 2 metrics) at this speed: "
               + ", ".join(f"{k} {v:,.4g}" for k, v in cluster.items()))
     if args.save:
-        from paper_repro.evidence.golden import stamp
+        from paper_repro.evidence.golden import layer_of, stamp
+        from paper_repro.studies.catalogue import make_study
 
         out = figures_dir() / "throughput"
         out.mkdir(parents=True, exist_ok=True)
@@ -142,7 +143,10 @@ def main() -> None:
         if cluster is not None:
             pd.DataFrame([cluster]).to_csv(out / "cluster.csv", index=False,
                                            float_format="%.4g")
-        stamp(out, " ".join(["python", "benchmarks/throughput.py", *sys.argv[1:]]))
+        # The crossings fly the moving study's configuration: the set carries its layer.
+        layer = (layer_of(*(s.config for s in make_study("moving_obstacles", scenes=1).specs))
+                 if "crossings" in args.families else "")
+        stamp(out, " ".join(["python", "benchmarks/throughput.py", *sys.argv[1:]]), layer)
     print(json.dumps({
         "steps_per_core_s": round(one["steps_per_s"], 1),
         "steps_per_s_2_workers": round(together, 1),
