@@ -252,23 +252,17 @@ def _offered(presets: dict) -> str:
             + ".")
 
 
-def _heldout_table() -> pd.DataFrame:
-    return pd.read_csv(paths.figures_dir() / "studies" / "moving_heldout" / "heldout.csv")
-
-
-def _heldout_crossings() -> int:
-    return int(_heldout_table()["runs"].max())
-
-
 def _heldout_collisions() -> str:
-    table = _heldout_table().set_index(["prediction", "metric"])
-    return "; ".join(
+    """The design's collisions on the held-out crossings, per prediction and metric."""
+    table = pd.read_csv(paths.figures_dir() / "studies" / "moving_heldout" / "heldout.csv")
+    by = table.set_index(["prediction", "metric"])
+    return f"On {int(table['runs'].max())} crossings it was not chosen on: " + "; ".join(
         f"{'Kalman' if prediction == 'kalman' else prediction} " + ", ".join(
             f"{label} " + fmt.rate_of(r.collisions / r.runs, r.collision_low, r.collision_high,
                                       int(r.collisions), int(r.runs))
             for metric, label in (("smooth", "smoothed"), ("euclidean", "Euclidean"))
-            for r in [table.loc[(prediction, metric)]])
-        for prediction in dict.fromkeys(table.index.get_level_values(0)))
+            for r in [by.loc[(prediction, metric)]])
+        for prediction in dict.fromkeys(by.index.get_level_values(0)))
 
 
 def overview() -> str:
@@ -302,8 +296,7 @@ def overview() -> str:
              "`avoidability.csv`"],
             ["... with the design barrier for moving regions (`studies.catalogue.MOVING_DESIGN`)",
              f"collisions over {n} crossings: oracle {collided('design', 'oracle')}; Kalman "
-             f"{collided('design', 'kalman')}. On {_heldout_crossings()} crossings it was not "
-             f"chosen on: {_heldout_collisions()}",
+             f"{collided('design', 'kalman')}. {_heldout_collisions()}",
              "`moving_obstacles_rates.csv`, `heldout.csv`"]]
     rates = tuned[tuned["kind"] == "rate"].set_index(["setup", "event"])
     rows.append(["tuned parameters, held-out passages", "; ".join(
