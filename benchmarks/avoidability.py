@@ -1,8 +1,10 @@
 """Which moving crossings could be flown clear at all? The avoidability check on each crossing.
 
-    python benchmarks/avoidability.py [--seeds 0-99] [--save]
+    python benchmarks/avoidability.py [--seeds 0-49,100-149] [--save]
 
-For each random crossing (``make_scene("random-crossing", seed)``), a point mass with the
+For each random crossing the moving studies fly (:data:`FLOWN`: the crossings of the paper's
+barrier, timed to the printed set-up's pace, and those of the design, timed to its own;
+``make_scene("random-crossing", seed, approach_time)``), a point mass with the
 quadrotor's velocity and tilt-limited acceleration bounds and full foresight searches for a
 passage from the start to the finish line within the study's step limit that keeps 0.35 m from
 every region, the regions solid (:func:`paper_repro.analysis.avoidability.find_passage`).
@@ -25,7 +27,11 @@ from paper_repro import Config, make_scene, paths
 from paper_repro.analysis.avoidability import find_passage, passage_row
 from paper_repro.cli.args import seed_list
 from paper_repro.evidence.golden import stamp, stamped_layer
-from paper_repro.studies.catalogue import PASSAGE_STEPS
+from paper_repro.studies.catalogue import MOVING_APPROACH_TIME, PASSAGE_STEPS
+
+FLOWN = ((150.0, "0-49"), (MOVING_APPROACH_TIME, "0-49,100-149"))
+"""(pace ``approach_time`` s, seeds) of the crossings the moving studies fly: the study's 50
+with the paper's barrier; the design's, the study's 50 and its 50 held-out."""
 
 _STUDIES = [paths.figures_dir() / "studies" / name
             for name in ("moving_obstacles", "moving_heldout")]
@@ -33,44 +39,47 @@ _STUDIES = [paths.figures_dir() / "studies" / name
 
 
 def _study_pace() -> dict:
-    """Crossing seed → the shortest time to the finish line among the oracle and Kalman runs
-    of it (s) in the committed tables of :data:`_STUDIES`."""
+    """Crossing (its scene's name, which carries its pace) → the shortest time to the finish
+    line among the oracle and Kalman runs of it (s) in the committed tables of
+    :data:`_STUDIES`."""
     tables = [pd.read_parquet(f / "table.parquet") for f in _STUDIES
               if (f / "table.parquet").is_file()]
     if not tables:
         return {}
     t = pd.concat(tables, ignore_index=True)
     t = t[t["prediction"].isin(("oracle", "kalman")) & t["completed"].astype(bool)]
-    return {int(k): float(v) for k, v in t.groupby("scene_seed")["time_to_complete_s"].min()
-            .items()}
+    return {str(k): float(v) for k, v in t.groupby("scene")["time_to_complete_s"].min().items()}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seeds", default="0-99", help="crossing seeds, e.g. 0-49 or 2,3,5")
+    parser.add_argument("--seeds", default=None,
+                        help="crossing seeds at both paces, e.g. 0-49 or 2,3,5 (default: the "
+                             "crossings the studies fly)")
     parser.add_argument("--save", action="store_true")
     args = parser.parse_args()
     try:
-        seeds = seed_list(args.seeds)
+        crossings = [(pace, seed) for pace, seeds in FLOWN
+                     for seed in seed_list(seeds if args.seeds is None else args.seeds)]
     except argparse.ArgumentTypeError as exc:
         parser.error(f"--seeds {exc}")
     horizon = PASSAGE_STEPS * Config().nmpc.ts
     pace = _study_pace()
     rows = []
-    for seed in seeds:
+    for approach_time, seed in crossings:
         t0 = time.perf_counter()
-        scene = make_scene("random-crossing", seed)
+        scene = make_scene("random-crossing", seed, approach_time)
         passage = find_passage(scene, horizon)
-        row = passage_row(seed, passage)
+        row = {"approach_time_s": approach_time, **passage_row(seed, passage)}
         # The same question at the controller's own pace: finish no later than the fastest of
         # the study's predicted runs of this crossing did.
-        row["study_time_s"] = pace.get(seed, float("nan"))
-        if seed in pace:
-            at_pace = find_passage(scene, pace[seed])
+        row["study_time_s"] = pace.get(scene.name, float("nan"))
+        if scene.name in pace:
+            at_pace = find_passage(scene, pace[scene.name])
             row.update(at_pace_outcome=at_pace.outcome, at_pace_clearance_m=at_pace.clearance)
         rows.append(row)
-        print(f"crossing {seed:3d}: {passage.outcome:17s} clearance {passage.clearance:6.3f} m, "
+        print(f"{scene.name:24s}: {passage.outcome:17s} clearance {passage.clearance:6.3f} m, "
               f"finish at {passage.time:6.1f} s, guess {passage.guess or '-'}; within "
               f"{row['study_time_s']:.1f} s: {row.get('at_pace_outcome', '-')} "
               f"({time.perf_counter() - t0:.1f} s)", flush=True)
@@ -86,7 +95,8 @@ def main() -> None:
         layers = {stamped_layer(f) for f in _STUDIES if f.is_dir()}
         if len(layers) > 1:
             raise SystemExit(f"the moving studies carry different golden layers {layers}")
-        stamp(out, f"python benchmarks/avoidability.py --save --seeds {args.seeds}",
+        stamp(out, "python benchmarks/avoidability.py --save"
+              + ("" if args.seeds is None else f" --seeds {args.seeds}"),
               layers.pop() if layers else "")
 
 

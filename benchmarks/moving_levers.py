@@ -24,7 +24,7 @@ from paper_repro import studies as S
 from paper_repro.analysis import statistics
 from paper_repro.cli.args import seed_list
 from paper_repro.evidence.golden import stamp
-from paper_repro.studies.catalogue import MOVING_DESIGN, PASSAGE_STEPS, Study, passage_spec
+from paper_repro.studies.catalogue import PASSAGE_STEPS, Study, passage_spec
 
 PREDICTED = ("oracle", "kalman")
 
@@ -59,7 +59,10 @@ LEVERS = {
     "lookahead-5s": _with(barrier={"equilibrium_lookahead": 5.0}),
     "moving-d_min-3+lookahead-4s": _with(barrier={"moving_d_min": 3.0,
                                                   "equilibrium_lookahead": 4.0}),
-    "moving-d_min-2+lookahead-3s": _with(barrier=MOVING_DESIGN["euclidean"]),  # Euclidean design
+    # The Euclidean barrier of the first design; the design now adds a sweep and a longer
+    # prediction (studies.catalogue.MOVING_DESIGN), flown by the moving study itself.
+    "moving-d_min-2+lookahead-3s": _with(barrier={"moving_d_min": 2.0,
+                                                  "equilibrium_lookahead": 3.0}),
 }
 """Lever name → change of the moving study's base configuration."""
 

@@ -380,6 +380,13 @@ class SimulationParams:
         than ``stall_distance`` from its target. Under the printed weights the speed of a
         free approach is about (distance to target)/150 s, i.e. 1 cm/s at 1.5 m, so a
         threshold of 1 m would flag every normal final approach; 2 m leaves a third above it.
+    approach_time : s, *chosen* 150. The pace a ``"random-crossing"`` scene times its
+        crossings to (:class:`~paper_repro.world.random_scenes.RandomSceneParams`
+        ``approach_time``): each region reaches the flight line when a UAV approaching the
+        target as e^{−t/approach_time} would. 150 s is the printed set-up's (its lateral time
+        constant, :mod:`paper_repro.analysis.clock`); a controller that flies faster needs its
+        crossings timed sooner, or it passes before the regions arrive. Only
+        ``"random-crossing"`` reads it: any other scene with another value is refused.
     fault_steps : *chosen* 100 (1 s). A step whose measured state is not finite, or whose
         solve cannot start, is a *fault*: it is recorded and the previous plan is applied
         (shifted, as after a failed solve). After more than ``fault_steps`` faults in a row
@@ -396,6 +403,7 @@ class SimulationParams:
     stall_time: float = 5.0
     stall_distance: float = 2.0
     fault_steps: int = 100
+    approach_time: float = 150.0
 
     def __post_init__(self):
         require_choice("kind", self.kind, ("mission", "passage"))
@@ -408,6 +416,13 @@ class SimulationParams:
         require_int("max_steps", self.max_steps, 1)
         require_int("seed", self.seed, 0)
         require_int("fault_steps", self.fault_steps, 1)
+        if not (is_number(self.approach_time) and 0 < self.approach_time <= 10_000):
+            raise ValueError(f"approach_time must be a number in (0, 10000] (s), got "
+                             f"{self.approach_time!r}")
+        if self.approach_time != 150.0 and self.scenario != "random-crossing":
+            raise ValueError(f"approach_time times the crossings of the 'random-crossing' "
+                             f"scene only; scenario {self.scenario!r} needs the default 150 s, "
+                             f"got {self.approach_time!r}")
 
 
 @dataclass(frozen=True)

@@ -327,17 +327,16 @@ def test_the_design_barrier_keeps_clear_where_the_papers_barrier_collides(predic
     """8 s of a crossing of the moving study. With the paper's barrier the region comes within a
     rotor arm of the UAV (the prediction sees it 0.35 s ahead, β = D − d_min lets it close
     to √(2·d_min) = 1.41 m, and the escape starts too late); with the study's design for
-    regions predicted to move (``catalogue.MOVING_DESIGN``, smoothed metric: a 3 m² margin)
-    the UAV backs off early and keeps more than a metre."""
-    from paper_repro.studies.catalogue import moving_design
+    regions predicted to move (``catalogue.moving_design_controller``, smoothed metric: a 3 m²
+    margin, the region's path over the next second, a 0.525 s prediction) the UAV leaves the
+    region's path early and keeps more than a metre."""
+    from paper_repro.studies.catalogue import moving_design_controller
 
     scene, x0 = _window_of_crossing_5()
     base = Config(nmpc=NMPCParams(prediction=prediction),
-                  solver=SolverParams(line_search=True))
+                  solver=SolverParams(line_search=True, qp_solver="riccati-ipm"))
     clearance = {}
-    for name, barrier in (("paper", base.barrier),
-                          ("design", moving_design(base.barrier, "smooth"))):
-        cfg = dataclasses.replace(base, barrier=barrier)
+    for name, cfg in (("paper", base), ("design", moving_design_controller(base, "smooth"))):
         result = simulate(cfg, max_steps=800, scene=scene, initial_state=x0, progress=False)
         assert result.failures == 0
         clearance[name] = result.clearance.min()

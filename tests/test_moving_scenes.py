@@ -267,6 +267,44 @@ def test_random_crossing_scene(seed):
         assert np.linalg.norm(points - target, axis=1).min() >= params.clearance
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_a_random_crossing_timed_to_another_pace_moves_the_same_regions_sooner(seed):
+    """``approach_time`` (``SimulationParams``) times the same crossings to another pace: the
+    field, its clouds and the regions' velocities are the seed's; each region's centre is on
+    the line at the expected arrival for that pace plus the same draw from the spread, so the
+    crossing times of two paces differ by the difference of their arrivals exactly."""
+    slow, fast = make_scene("random-crossing", seed), make_scene("random-crossing", seed, 27.0)
+    assert fast.name == f"random-crossing-{seed}@27s"
+    assert make_scene("random-crossing", seed, 150.0).fingerprint() == slow.fingerprint()
+    assert fast.fingerprint() != slow.fingerprint()
+    assert fast.regions == slow.regions and fast.finish == slow.finish
+    for a, b in zip(fast.clouds, slow.clouds, strict=True):
+        np.testing.assert_array_equal(a, b)
+    start, target = np.asarray(slow.start), np.asarray(slow.targets[0])
+    length = np.linalg.norm(target - start)
+    u = (target - start) / length
+    n = np.array([-u[1], u[0], 0.0])
+    for cloud, m_slow, m_fast in zip(slow.clouds, slow.motions, fast.motions, strict=True):
+        v = m_slow.velocity(0.0)
+        np.testing.assert_allclose(m_fast.velocity(0.0), v, rtol=0, atol=1e-12)
+        centre = np.mean(cloud, axis=0) - start
+        crossing = {pace: -((centre + m.offset(0.0)) @ n) / (v @ n)
+                    for pace, m in ((150.0, m_slow), (27.0, m_fast))}
+        log_share = math.log(1.0 - min(max(centre @ u, 0.0), 0.99 * length) / length)
+        np.testing.assert_allclose(crossing[150.0] - crossing[27.0], -(150.0 - 27.0) * log_share,
+                                   atol=1e-9)
+
+
+def test_the_pace_of_crossings_is_refused_for_other_scenes():
+    with pytest.raises(ValueError, match="approach_time"):
+        make_scene("random", 1, 27.0)
+    with pytest.raises(ValueError, match="approach_time"):
+        SimulationParams(scenario="paper", approach_time=27.0)
+    with pytest.raises(ValueError, match="approach_time"):
+        SimulationParams(scenario="random-crossing", approach_time=-1.0)
+    assert SimulationParams(scenario="random-crossing", approach_time=27.0).approach_time == 27
+
+
 def test_random_moving_flag_and_params_validated():
     with pytest.raises(ValueError, match="moving"):
         random_scene(1, moving="yes")

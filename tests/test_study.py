@@ -56,7 +56,11 @@ def test_the_moving_study_flies_each_crossing_with_every_prediction_and_the_desi
     """Random crossings x {static, oracle, kalman} x both metrics with the paper's barrier, then
     x {oracle, kalman} x both metrics with the design barrier; the paper's rows are keyed as
     before the design existed (its setting at its neutral value), the design's differ."""
-    from paper_repro.studies.catalogue import MOVING_DESIGN
+    from paper_repro.studies.catalogue import (
+        MOVING_APPROACH_TIME,
+        MOVING_DESIGN,
+        MOVING_PREDICTION_TS,
+    )
 
     study = S.moving_obstacles(scenes=3)
     assert len(study.specs) == 3 * 3 * 2 + 3 * 2 * 2
@@ -72,6 +76,14 @@ def test_the_moving_study_flies_each_crossing_with_every_prediction_and_the_desi
     assert all(getattr(s.config.barrier, k) == v for s in design
                for k, v in MOVING_DESIGN[s.config.distance.metric].items())
     assert all("equilibrium_lookahead" not in s.config.key_dict()["barrier"] for s in paper)
+    # The design predicts further (a longer step) and flies crossings timed to its own pace;
+    # the paper's rows keep the printed step and the crossings of the printed set-up.
+    assert {s.config.nmpc.prediction_ts for s in design} == {MOVING_PREDICTION_TS}
+    assert {s.config.simulation.approach_time for s in design} == {MOVING_APPROACH_TIME}
+    assert {s.config.nmpc.prediction_ts for s in paper} == {None}
+    assert all("approach_time" not in s.config.key_dict()["simulation"] for s in paper)
+    assert design[0].scene().name.endswith(f"@{MOVING_APPROACH_TIME:g}s")
+    assert design[0].scene().fingerprint() != paper[0].scene().fingerprint()
     assert len({s.name for s in study.specs}) == len(study.specs)
     assert study.specs[0].scene().is_moving
     # The damped RTI on the interior-point chain; its runs and its stamp carry that layer's

@@ -6,6 +6,8 @@ moving-obstacle barrier, the timeline study, the tuning, and the README's table 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pandas as pd
 
 from paper_repro import paths
@@ -137,42 +139,73 @@ def moving_obstacles_tails() -> str:
 
 def avoidability() -> str:
     """``figures/studies/avoidability/avoidability.csv``: the crossings a point mass with the
-    quadrotor's bounds and full foresight flies clear."""
+    quadrotor's bounds and full foresight flies clear, per pace of the crossings (the paper's
+    rows fly them timed to the printed set-up, the design's to its own)."""
     from scipy import stats
 
     table = pd.read_csv(paths.figures_dir() / "studies" / "avoidability" / "avoidability.csv")
-    k, n = int(table["avoidable"].sum()), len(table)
-    ci = stats.binomtest(k, n).proportion_ci(0.95, method="exact")
-    found = table[table["avoidable"]]
-    verdict = ("\n\nEvery crossing has a passage: every collision of the study counts against "
-               "the controller." if k == n else
-               f"\n\nNo passage found for crossing(s) "
-               f"{', '.join(str(s) for s in table.loc[~table['avoidable'], 'scene_seed'])}: "
-               "their collisions are not counted against the controller.")
-    paced = table.dropna(subset=["study_time_s"])
-    k_p = int((paced["at_pace_outcome"] == "avoidable").sum())
+    rows = []
+    for pace, g in table.groupby("approach_time_s", sort=False):
+        k, n = int(g["avoidable"].sum()), len(g)
+        ci = stats.binomtest(k, n).proportion_ci(0.95, method="exact")
+        found, paced = g[g["avoidable"]], g.dropna(subset=["study_time_s"])
+        k_p = int((paced["at_pace_outcome"] == "avoidable").sum())
+        rows.append([f"{pace:g} s", f"{n}", f"{k}/{n} [{100 * ci.low:.0f}, {100 * ci.high:.0f}] %",
+                     ", ".join(str(s) for s in g.loc[~g["avoidable"], "scene_seed"]) or "none",
+                     f"{found['clearance_m'].min():.2f} to {found['clearance_m'].max():.2f} m",
+                     ", ".join(f"{q} ({c})" for q, c in found["guess"].value_counts().items()),
+                     f"{k_p}/{len(paced)} (closest approach "
+                     f"{paced['at_pace_clearance_m'].min():.2f} m)"])
+    missing = table[~table["avoidable"]]
+    verdict = ("\n\nEvery crossing has a passage: every collision of the studies counts against "
+               "the controller." if missing.empty else
+               "\n\nA crossing without a passage found does not count its collisions against "
+               "the controller.")
     return fmt.markdown_table(
-        ["crossings", "avoidable", "no passage found", "clearance of the passages found",
-         "first guess that found them", "avoidable within the controller's time"],
-        [[f"{n}", f"{k}/{n} [{100 * ci.low:.0f}, {100 * ci.high:.0f}] %", f"{n - k}",
-          f"{found['clearance_m'].min():.2f} to {found['clearance_m'].max():.2f} m",
-          ", ".join(f"{g} ({c})" for g, c in found["guess"].value_counts().items()),
-          f"{k_p}/{len(paced)} (the crossings the study and the held-out set flew; closest "
-          "approach "
-          f"{paced['at_pace_clearance_m'].min():.2f} m)"]]) + verdict
+        ["crossings timed to", "crossings", "avoidable", "no passage found",
+         "clearance of the passages found", "first guess that found them",
+         "avoidable within the controller's time"], rows) + verdict
 
 
 def moving_heldout() -> str:
-    """``figures/studies/moving_heldout/heldout.csv``: the design barrier on crossings it was
-    not chosen on."""
+    """``figures/studies/moving_heldout/heldout.csv``: the design on crossings 50-99, seen while
+    it was chosen, and on crossings no design was chosen on."""
     table = pd.read_csv(paths.figures_dir() / "studies" / "moving_heldout" / "heldout.csv")
-    rows = [[r.prediction, r.metric,
+    rows = [[r.set, r.prediction, r.metric,
              fmt.rate_of(r.collisions / r.runs, r.collision_low, r.collision_high,
                          int(r.collisions), int(r.runs)),
              f"{r.min_clearance_m:.3f} m", f"{int(r.completed)}/{int(r.runs)}",
-             f"{int(r.failed_solves):,}"] for r in table.itertuples()]
-    return fmt.markdown_table(["prediction", "metric", "collisions", "closest approach",
-                               "completed", "failed solves"], rows)
+             f"{int(r.failed_solves):,}", f"{int(r.encounters)}/{int(r.runs)}"]
+            for r in table.itertuples()]
+    return fmt.markdown_table(["crossings", "prediction", "metric", "collisions",
+                               "closest approach", "completed", "failed solves",
+                               "a region within 3 m"], rows)
+
+
+def moving_speeds() -> str:
+    """``figures/studies/moving_speeds/``: how fast the UAV moved sideways on the crossings
+    (``speeds.csv``) and how the collisions came about (``collisions.csv``)."""
+    folder = paths.figures_dir() / "studies" / "moving_speeds"
+    speeds = pd.read_csv(folder / "speeds.csv")
+    hits = pd.read_csv(folder / "collisions.csv")
+    rows = []
+    for r in speeds.itertuples():
+        g = hits[(hits["set"] == r.set) & (hits["barrier"] == r.barrier)
+                 & (hits["prediction"] == r.prediction) & (hits["metric"] == r.metric)]
+        rows.append([r.set, r.barrier, r.prediction, r.metric,
+                     f"{r.max_horizontal_speed_median_m_s:.2f} / "
+                     f"{r.max_horizontal_speed_max_m_s:.2f} m/s",
+                     f"{int(r.runs_with_a_region_faster)}/{int(r.runs)}",
+                     f"{int(r.collisions)}/{int(r.runs)}",
+                     "—" if g.empty else f"{g['region_speed_m_s'].median():.2f} m/s",
+                     "—" if g.empty else f"{g['uav_speed_before_m_s'].median():.2f} m/s",
+                     "—" if g.empty else f"{int((g['cos_uav_region'] > 0.5).sum())}/{len(g)}"])
+    return fmt.markdown_table(
+        ["set", "barrier", "prediction", "metric",
+         "largest horizontal speed of a run, median / largest",
+         "runs with a region faster than that", "collisions",
+         "colliding region's speed, median", "UAV's speed over the 3 s before, median",
+         "collisions fleeing along the region's path (cos > 0.5)"], rows)
 
 
 def moving_levers() -> str:
@@ -253,16 +286,32 @@ def _offered(presets: dict) -> str:
 
 
 def _heldout_collisions() -> str:
-    """The design's collisions on the held-out crossings, per prediction and metric."""
+    """The design's collisions on the crossings no design was chosen on, per prediction and
+    metric."""
     table = pd.read_csv(paths.figures_dir() / "studies" / "moving_heldout" / "heldout.csv")
-    by = table.set_index(["prediction", "metric"])
-    return f"On {int(table['runs'].max())} crossings it was not chosen on: " + "; ".join(
+    by = table[table["set"] == "held out"].set_index(["prediction", "metric"])
+    return f"On {int(by['runs'].max())} crossings no design was chosen on: " + "; ".join(
         f"{'Kalman' if prediction == 'kalman' else prediction} " + ", ".join(
             f"{label} " + fmt.rate_of(r.collisions / r.runs, r.collision_low, r.collision_high,
                                       int(r.collisions), int(r.runs))
             for metric, label in (("smooth", "smoothed"), ("euclidean", "Euclidean"))
             for r in [by.loc[(prediction, metric)]])
         for prediction in dict.fromkeys(by.index.get_level_values(0)))
+
+
+def _design_span(study_json) -> float:
+    """s, the prediction span N·h the moving study's design rows flew, from its ``study.json``."""
+    import json
+
+    from paper_repro.config import Config
+
+    specs = json.loads(Path(study_json).read_text())["specs"]
+    steps = {s["config_changes"].get("nmpc.prediction_ts") for s in specs
+             if s["labels"]["barrier"] == "design"}
+    if len(steps) != 1 or None in steps:
+        raise ValueError(f"{study_json}: the design rows fly prediction steps {steps}, "
+                         "expected one step set by the design")
+    return Config().nmpc.horizon * steps.pop()
 
 
 def overview() -> str:
@@ -286,15 +335,18 @@ def overview() -> str:
             for metric, label in (("smooth", "smoothed"), ("euclidean", "Euclidean")))
 
     n = int(moving.loc[("paper", "oracle", "smooth", "collision")].n)
+    span = _design_span(figs / "studies" / "moving_obstacles" / "study.json")
     rows = [["moving regions, the paper's barrier",
              f"collisions over {n} crossings: static prediction {collided('paper', 'static')}; "
              f"oracle {collided('paper', 'oracle')}; Kalman {collided('paper', 'kalman')}",
              "`moving_obstacles_rates.csv`"],
             ["... could a vehicle as agile have passed?",
              f"a clear passage exists for {int(avoid['avoidable'].sum())} of {len(avoid)} "
-             "crossings (point mass with the quadrotor's bounds and full foresight)",
+             "crossings, timed to either controller's pace (point mass with the quadrotor's "
+             "bounds and full foresight)",
              "`avoidability.csv`"],
-            ["... with the design barrier for moving regions (`studies.catalogue.MOVING_DESIGN`)",
+            ["... with the design for moving regions (`studies.catalogue.moving_design`: a "
+             f"wider, swept margin and a {span:g} s prediction)",
              f"collisions over {n} crossings: oracle {collided('design', 'oracle')}; Kalman "
              f"{collided('design', 'kalman')}. {_heldout_collisions()}",
              "`moving_obstacles_rates.csv`, `heldout.csv`"]]

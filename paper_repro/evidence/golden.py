@@ -315,6 +315,7 @@ EVIDENCE_SETS = (
     "studies/avoidability",  # benchmarks/avoidability.py --save
     "studies/moving_levers",  # benchmarks/moving_levers.py --save
     "studies/moving_heldout",  # benchmarks/moving_heldout.py --save
+    "studies/moving_speeds",  # benchmarks/moving_speeds.py --save
     "studies/guidance",  # study guidance
     "guidance_cost",  # benchmarks/guidance_cost.py --save
     "guide_filter",  # benchmarks/guide_filter.py --save

@@ -323,7 +323,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "guidance_cost": beyond.guidance_cost, "guide_filter": beyond.guide_filter,
     "moving_obstacles": beyond.moving_obstacles,
     "moving_obstacles_tails": beyond.moving_obstacles_tails, "avoidability": beyond.avoidability,
-    "moving_heldout": beyond.moving_heldout,
+    "moving_heldout": beyond.moving_heldout, "moving_speeds": beyond.moving_speeds,
     "moving_levers": beyond.moving_levers, "timeline": beyond.timeline,
     "tuning": beyond.tuning, "beyond": beyond.overview}
 """Every generated block of the README, by name."""

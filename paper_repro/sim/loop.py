@@ -28,7 +28,7 @@ from paper_repro.vehicles.quadrotor import quadrotor_model
 from paper_repro.world.guide import Guide
 from paper_repro.world.lidar import Lidar
 from paper_repro.world.local_map import MAPPED_SPEED, VoxelMap
-from paper_repro.world.scenarios import make_scene
+from paper_repro.world.scenarios import mission_scene
 from paper_repro.world.scene import Scene
 
 
@@ -106,7 +106,7 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
         cfg = dataclasses.replace(cfg, simulation=dataclasses.replace(cfg.simulation,
                                                                       max_steps=max_steps))
     sim, ts = cfg.simulation, cfg.nmpc.ts
-    scene = scene if scene is not None else make_scene(sim.scenario, sim.seed)
+    scene = scene if scene is not None else mission_scene(sim)
     passage = sim.kind == "passage"
     model = _vehicle(cfg, controller, model)
     # An inconsistent mission fails here, before anything is built.

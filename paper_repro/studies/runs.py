@@ -65,11 +65,10 @@ class RunSpec:
                              f"{self.name!r}")
 
     def scene(self):
-        """The scene this spec flies, built from ``config.simulation`` (scenario, seed)."""
-        from paper_repro.world.scenarios import make_scene
+        """The scene this spec flies, built from ``config.simulation`` (scenario, seed, pace)."""
+        from paper_repro.world.scenarios import mission_scene
 
-        sim = self.config.simulation
-        return make_scene(sim.scenario, sim.seed)
+        return mission_scene(self.config.simulation)
 
     @functools.cached_property
     def key(self) -> str:

@@ -3,6 +3,8 @@ scenes; :func:`make_scene` builds any of them (and random scenes) by name."""
 
 from __future__ import annotations
 
+import dataclasses
+
 from paper_repro.world.motion import Motion
 from paper_repro.world.scene import Region, Scene
 from paper_repro.world.shapes import Box, Cylinder, Difference, Union
@@ -11,21 +13,35 @@ SCENARIOS = ("paper", "encounter", "random", "crossing", "oncoming", "random-cro
 """The names :func:`make_scene` knows (``SimulationParams.scenario``)."""
 
 
-def make_scene(name: str, seed: int = 7) -> Scene:
+def make_scene(name: str, seed: int = 7, approach_time: float = 150.0) -> Scene:
     """The named scene: ``"paper"`` (Section V mission), ``"encounter"`` (one region, short),
     ``"random"`` (:func:`paper_repro.world.random_scenes.random_scene` of ``seed``: a seeded field
     of regions across a straight flight, with a finish line for passages), or a scene whose
     regions move: ``"crossing"`` (:func:`crossing_scene`), ``"oncoming"``
     (:func:`oncoming_scene`) and ``"random-crossing"`` (the ``"random"`` field of ``seed``,
-    each region crossing the flight line, ``random_scene(seed, moving=True)``)."""
-    from paper_repro.world.random_scenes import random_scene
+    each region crossing the flight line, ``random_scene(seed, moving=True)``, its crossings
+    timed to a UAV approaching as e^{−t/``approach_time``}, s; a pace other than the default
+    150 s is named ``f"random-crossing-{seed}@{approach_time:g}s"``)."""
+    from paper_repro.world.random_scenes import RandomSceneParams, random_scene
 
+    if name not in SCENARIOS:
+        raise ValueError(f"scenario must be one of {SCENARIOS}, got {name!r}")
+    if approach_time != 150.0:
+        if name != "random-crossing":
+            raise ValueError(f"approach_time times the crossings of 'random-crossing' only; "
+                             f"{name!r} takes the default 150 s, got {approach_time!r}")
+        scene = random_scene(seed, RandomSceneParams(approach_time=approach_time), moving=True)
+        return dataclasses.replace(scene, name=f"{scene.name}@{approach_time:g}s")
     builders = {"paper": paper_scene, "encounter": encounter_scene, "random": random_scene,
                 "crossing": crossing_scene, "oncoming": oncoming_scene,
                 "random-crossing": lambda s: random_scene(s, moving=True)}
-    if name not in SCENARIOS:
-        raise ValueError(f"scenario must be one of {SCENARIOS}, got {name!r}")
     return builders[name](seed)
+
+
+def mission_scene(sim) -> Scene:
+    """The scene a mission flies: ``sim`` (a :class:`~paper_repro.config.SimulationParams`)
+    names it by its scenario, seed and, for crossings, their pace (``approach_time``)."""
+    return make_scene(sim.scenario, sim.seed, sim.approach_time)
 
 
 def paper_scene(seed: int = 7) -> Scene:
