@@ -337,10 +337,11 @@ class QPLayout:
             k += count * size * size
         return total
 
-    def scatter(self, X, U, a) -> np.ndarray:
+    def scatter(self, X, U, a, out: np.ndarray | None = None) -> np.ndarray:
         """w of the iterate: X (N, n_x) = x_1..x_N, U (N, n_u), a (n_a,) at every stage; the
-        carried β are 0 (they are recomputed, never stored)."""
-        w = np.zeros(self.nw)
+        carried β are 0 (they are recomputed, never stored). ``out``: an (n_w,) array to
+        write into, whose carried β entries are 0 (a buffer only this writes)."""
+        w = np.zeros(self.nw) if out is None else out
         w[self.ix] = X
         w[self.iu] = U
         w[self.ia] = a
