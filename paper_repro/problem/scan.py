@@ -315,6 +315,27 @@ def check_visible(visible, dim: int = 3) -> tuple[np.ndarray, ...]:
     return _CheckedScan(regions, dim)
 
 
+def drop_non_finite(visible, dim: int = 3) -> tuple[Sequence[np.ndarray], int]:
+    """A LiDAR scan without its non-finite points (a bad return is dropped, not flown on), and
+    how many were dropped.
+
+    ``visible`` : one (k_i, p) array per region. When every region then is a (k_i, ``dim``)
+    float array, the scan comes back in the form :func:`check_visible` returns (its regions
+    are finite now, so a solver does not check them again); otherwise as a list, for
+    :func:`check_visible` to refuse with its message.
+    """
+    clean, dropped, checked = [], 0, True
+    for v in visible:
+        ok = np.isfinite(v).all(axis=1)
+        if not ok.all():
+            v = v[ok]
+            dropped += int(len(ok) - ok.sum())
+        clean.append(v)
+        checked = checked and (type(v) is np.ndarray and v.dtype == np.float64
+                               and v.ndim == 2 and v.shape[1] == dim)
+    return (_CheckedScan(clean, dim) if checked else clean), dropped
+
+
 class _CheckedScan(tuple):
     """A scan that :func:`check_visible` has accepted (so it is not checked twice)."""
 
