@@ -245,7 +245,9 @@ class OCP:
         if self._equilibrium_fn is None:
             e = self.equilibria
             self._equilibrium_fn = (_numeric(e.state), _numeric(e.input))
-        return tuple(fn(np.asarray(a, float)) for fn in self._equilibrium_fn)
+        state, input_ = self._equilibrium_fn
+        a = np.asarray(a, float)
+        return state(a), input_(a)
 
     # Guesses.
 

@@ -326,8 +326,8 @@ def drop_non_finite(visible, dim: int = 3) -> tuple[Sequence[np.ndarray], int]:
     """
     clean, dropped, checked = [], 0, True
     for v in visible:
-        ok = np.isfinite(v).all(axis=1)
-        if not ok.all():
+        if len(v) and not np.isfinite(v).all():  # the points of the rows that are not finite
+            ok = np.isfinite(v).all(axis=1)
             v = v[ok]
             dropped += int(len(ok) - ok.sum())
         clean.append(v)
