@@ -213,6 +213,22 @@ def test_a_smaller_lidar_capacity_gives_the_same_step(scene, metric):
         RealTimeNMPC(_config(), capacities=(0,))
 
 
+def test_the_warm_start_is_the_reanchored_plan_bit_for_bit(scene):
+    """The SQP starts from the previous plan moved to the measured state, the numbers of
+    NMPCSolution.reanchored to the bit (built without the intermediate solution)."""
+    ctl = RealTimeNMPC(_config())
+    x0, _ = equilibrium([-18.3, 0.2, 2.0])
+    x0[6] = 0.3
+    plan = ctl.solve(x0, scene.targets[0], Lidar(scene.clouds).scan(x0[:3]))
+    x1 = x0 + np.linspace(0.001, 0.012, 12)
+    X, U, a = ctl._guess(x1, plan)
+    moved = plan.reanchored(x1, ctl.ocp.model.position)
+    expected = moved.x.copy()
+    expected[0] = x1
+    assert X.tobytes() == expected.tobytes() and U.tobytes() == moved.u.tobytes()
+    assert a.tobytes() == ctl.ocp.parameters_of(moved.x_a, moved.u_a).tobytes()
+
+
 def test_a_repeated_scan_is_packed_once_and_the_same_bit_for_bit(scene):
     """The ladder keeps the last packing of each capacity with the regions' bytes: a scan
     that sees the same points again (most steps) gets it back, equal bit for bit to a fresh

@@ -210,6 +210,14 @@ class RealTimeNMPC:
         self.qp.reset()
         self.line_search.reset()
 
+    def hover_guess(self, x0) -> NMPCSolution:
+        """Rest where the vehicle is for the whole horizon (the quadrotor: hover)."""
+        return self.ocp.rest(x0)
+
+    def obstacle_parameters(self, visible, position, velocities=None) -> np.ndarray:
+        """The LiDAR scan in the parameter layout of the config's capacity."""
+        return self.ocp.scan.pack(visible, position, velocities)
+
     def _guess(self, x0: np.ndarray, previous: NMPCSolution | None):
         """The iterate the SQP starts from, as new arrays: X (N+1, n_x) with X[0] = x0, U
         (N, n_u) and a (n_a,). The previous plan moved to x0
@@ -227,14 +235,6 @@ class RealTimeNMPC:
         X[0] = x0
         return (X, np.array(previous.u, dtype=float),
                 self.ocp.parameters_of(previous.x_a + move, previous.u_a))
-
-    def hover_guess(self, x0) -> NMPCSolution:
-        """Rest where the vehicle is for the whole horizon (the quadrotor: hover)."""
-        return self.ocp.rest(x0)
-
-    def obstacle_parameters(self, visible, position, velocities=None) -> np.ndarray:
-        """The LiDAR scan in the parameter layout of the config's capacity."""
-        return self.ocp.scan.pack(visible, position, velocities)
 
 
 # --- the QP backends ---------------------------------------------------------------------------
