@@ -15,7 +15,9 @@ in, by the frames of its stack:
   every step at once after the flight), ``logging``;
 * ``loop``: the rest of ``simulate``'s step.
 
-ms per step = share of the loop's samples × the flight's wall time per step. Then, in the same
+ms per step = share of the loop's samples × the flight's wall time per step, counting only the
+samples of the span that wall time measures (the step loop of the measured flight: not the
+controller's build, which is done before it, nor the warm-up or the set-up). Then, in the same
 process without the profiler, the floor of the compiled parts: one linearisation and one QP
 solve, each repeated on the inputs of a step with a region in view (the QP warm-started with its
 own active set, so one factorisation; its thin Python wrapper included), one LiDAR scan and one
@@ -49,14 +51,15 @@ PARTS = (  # (part, test on the frames of one sample: its stack, root first)
     ("plant", lambda f: _has(f, "Plant.step")),
     ("clearance", lambda f: _has(f, "_TrueClearance.along")),
     ("logging", lambda f: _has(f, "_Log.record")),
-    ("QP (C)", lambda f: _last_ours(f).startswith("StageQP.solve") and _line(f) == _QP_LINE),
-    ("QP (Python)", lambda f: _has(f, "StageQP.solve") or _has(f, "QPChain.solve")),
+    ("QP (C)", lambda f: _last_ours(f).startswith("StageQP._solve") and _line(f) == _QP_LINE),
+    ("QP (Python)", lambda f: _has(f, "QPChain.solve")),
     ("linearisation (C)", lambda f: _last_ours(f).startswith("NativeFunction.__call__")),
     ("linearisation (Python)", lambda f: _has(f, "LinearisationLadder.")),
     ("controller (Python)", lambda f: _has(f, "RealTimeNMPC.solve")),
     ("loop", lambda f: True),
 )
-_QP_LINE: int | None = None  # the line of StageQP.solve that calls the C solver
+_QP_LINE: int | None = None  # the line of StageQP._solve that calls the C solver
+_TIMED: tuple[int, int] | None = None  # simulate's lines of the span its wall_time_s times
 
 
 def _has(frames, name: str) -> bool:
@@ -73,29 +76,76 @@ def _line(frames) -> int | None:
     return int(last.rsplit(":", 1)[1].rstrip(")")) if ":" in last else None
 
 
+def _in_timed_flight(frames) -> bool:
+    """The sample is in the measured flight's timed span: ``simulate`` called from
+    :func:`_measured_flight` (not the warm-up, not the controller's build), at a line between
+    its clock's start and its ``wall_time_s`` (not the set-up before the loop, whose
+    KD-trees and checks the wall time per step does not include)."""
+    if not _has(frames, "_measured_flight"):
+        return False
+    for f in frames:
+        if f.startswith("simulate (") and "sim/loop.py" in f:
+            line = int(f.rsplit(":", 1)[1].rstrip(")"))
+            return _TIMED[0] <= line < _TIMED[1]
+    return False
+
+
 def _qp_call_line() -> int:
-    """The source line of ``StageQP.solve`` that calls the compiled solver."""
+    """The source line of ``StageQP._solve`` that calls the compiled solver."""
     import inspect
 
     from paper_repro.solvers.riccati_qp import StageQP
 
-    lines, first = inspect.getsourcelines(StageQP.solve)
+    lines, first = inspect.getsourcelines(StageQP._solve)
     return next(first + i for i, line in enumerate(lines) if "stage_qp_solve(" in line)
 
 
-def child(steps: int, out: Path) -> None:
-    """The profiled flight: the wall time per step goes to ``out``."""
-    from paper_repro import Config
+def _timed_lines() -> tuple[int, int]:
+    """The lines of ``simulate`` from its clock's start to the line that reads it."""
+    import inspect
+
     from paper_repro.sim.loop import simulate
 
-    simulate(Config(), max_steps=50, progress=False)  # compile caches warm
-    r = simulate(Config(), max_steps=steps, progress=False)
+    lines, first = inspect.getsourcelines(simulate)
+    start = next(first + i for i, line in enumerate(lines)
+                 if "wall = time.perf_counter()" in line)
+    end = next(first + i for i, line in enumerate(lines) if 'meta["wall_time_s"]' in line)
+    return start, end
+
+
+def child(steps: int, out: Path) -> None:
+    """The profiled flight: the wall time per step goes to ``out``. The controller is built
+    here, outside ``simulate``: built inside, its compilation and code generation (about
+    0.6 s per build) were counted as steps of the loop, most of it as the linearisation's
+    Python."""
+    from paper_repro import Config
+    from paper_repro.solvers.factory import make_controller
+
+    ctl = make_controller(Config())
+    _warm_up(ctl)
+    r = _measured_flight(ctl, steps)
     out.write_text(json.dumps({"steps": r.steps, "wall_s": r.meta["wall_time_s"]}))
 
 
+def _warm_up(ctl) -> None:
+    """A few steps first (caches warm); their samples are not counted."""
+    from paper_repro import Config
+    from paper_repro.sim.loop import simulate
+
+    simulate(Config(), controller=ctl, max_steps=50, progress=False)
+
+
+def _measured_flight(ctl, steps: int):
+    """The flight whose samples are counted (see :func:`_in_timed_flight`)."""
+    from paper_repro import Config
+    from paper_repro.sim.loop import simulate
+
+    return simulate(Config(), controller=ctl, max_steps=steps, progress=False)
+
+
 def profile(steps: int) -> tuple[pd.DataFrame, dict]:
-    global _QP_LINE
-    _QP_LINE = _qp_call_line()
+    global _QP_LINE, _TIMED
+    _QP_LINE, _TIMED = _qp_call_line(), _timed_lines()
     with tempfile.TemporaryDirectory() as tmp:
         raw, info = Path(tmp) / "raw.txt", Path(tmp) / "info.json"
         subprocess.run(["py-spy", "record", "--format", "raw", "--rate", "500", "--output",
@@ -106,8 +156,8 @@ def profile(steps: int) -> tuple[pd.DataFrame, dict]:
         for line in raw.read_text().splitlines():
             stack, n = line.rsplit(" ", 1)
             frames = [f.strip() for f in stack.split(";")]
-            if not any(f.startswith("simulate (") and "sim/loop.py" in f for f in frames):
-                continue  # imports, compilation, the warm-up's set-up
+            if not _in_timed_flight(frames):
+                continue  # imports, the controller's build, the warm-up, the set-up
             loop += int(n)
             part = next(name for name, test in PARTS if test(frames))
             counts[part] += int(n)
@@ -128,13 +178,13 @@ def floors(repeats: int = 2000) -> pd.DataFrame:
     scene = make_scene(cfg.simulation.scenario, cfg.simulation.seed)
     lidar = Lidar(scene.clouds, cfg.sensor.range)
     captured = {}
-    real_solve = ctl.qp.solve
+    real_solve = ctl.qp.solve_bound
 
-    def capture(*args):
-        captured["qp"] = [np.array(a, copy=True) for a in args]
-        return real_solve(*args)
+    def capture(bound):
+        captured["qp"] = [np.array(a, copy=True) for a in bound.arrays]
+        return real_solve(bound)
 
-    ctl.qp.solve = capture
+    ctl.qp.solve_bound = capture
     from paper_repro.sim.loop import simulate
 
     r = simulate(cfg, controller=ctl, max_steps=6000, progress=False)

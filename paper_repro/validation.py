@@ -82,6 +82,7 @@ def require_time(t) -> None:
 def as_vector(name: str, value, n: int) -> np.ndarray:
     """``value`` as a finite float array of shape (n,), or a ``ValueError`` naming it."""
     arr = np.asarray(value, dtype=float)
-    if arr.shape != (n,) or not np.all(np.isfinite(arr)):
+    # The array's own .all(): np.all's dispatch costs more than the check of a short vector.
+    if arr.shape != (n,) or not np.isfinite(arr).all():
         raise ValueError(f"{name} must be a finite array of shape ({n},), got {arr!r}")
     return arr

@@ -18,7 +18,12 @@ from paper_repro import (
 from paper_repro.config import BarrierParams
 from paper_repro.problem.distance import CloudWeights, euclidean_distance, smooth_distance
 from paper_repro.problem.ocp import OCP
-from paper_repro.problem.scan import PAD_LOG_WEIGHT, ScanLayout
+from paper_repro.problem.scan import (
+    PAD_LOG_WEIGHT,
+    ScanLayout,
+    check_visible,
+    drop_non_finite,
+)
 from paper_repro.solvers.ipopt import TrackingNMPC
 from paper_repro.solvers.linearisation import QPLayout
 from paper_repro.solvers.rti import QPChain, RealTimeNMPC
@@ -122,6 +127,22 @@ def test_more_regions_than_slots_keeps_the_nearest_regions_and_pads_the_rest():
     smooth = ScanLayout("smooth", 0.3, 0.8, 1.0, slots=2, capacity=4)
     _, log_w, _ = _slot(smooth, smooth.pack([near], np.zeros(3)), 0)
     assert np.all(log_w[2:] == PAD_LOG_WEIGHT)
+
+
+def test_dropping_non_finite_returns_hands_over_a_checked_scan():
+    """drop_non_finite removes the rows with a non-finite coordinate and counts them; a scan
+    of (k, p) float regions comes back in check_visible's checked form (not checked again),
+    anything else as a list that check_visible refuses with its message."""
+    good = np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])
+    bad = np.array([[1.0, np.nan, 3.0], [4.0, 5.0, 6.0], [np.inf, 0.0, 0.0]])
+    scan, dropped = drop_non_finite([good, bad, np.zeros((0, 3))], 3)
+    assert dropped == 2 and check_visible(scan, 3) is scan
+    np.testing.assert_array_equal(scan[1], bad[1:2])
+    assert scan[0] is good
+    transposed, dropped = drop_non_finite([good.T], 3)
+    assert dropped == 0 and isinstance(transposed, list)
+    with pytest.raises(ValueError, match=r"visible\[0\] must be a \(k, 3\) array"):
+        check_visible(transposed, 3)
 
 
 def test_padding_leaves_the_barrier_unchanged():

@@ -15,6 +15,7 @@ from paper_repro import (
     make_scene,
 )
 from paper_repro.analysis.metrics import COLLISION_CLEARANCE
+from paper_repro.problem.scan import check_visible
 from paper_repro.sim.loop import simulate
 from paper_repro.sim.plant import Plant
 from paper_repro.solvers.factory import make_controller
@@ -210,6 +211,46 @@ def test_a_smaller_lidar_capacity_gives_the_same_step(scene, metric):
     np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
     with pytest.raises(ValueError, match="capacities"):
         RealTimeNMPC(_config(), capacities=(0,))
+
+
+def test_the_warm_start_is_the_reanchored_plan_bit_for_bit(scene):
+    """The SQP starts from the previous plan moved to the measured state, the numbers of
+    NMPCSolution.reanchored to the bit (built without the intermediate solution)."""
+    ctl = RealTimeNMPC(_config())
+    x0, _ = equilibrium([-18.3, 0.2, 2.0])
+    x0[6] = 0.3
+    plan = ctl.solve(x0, scene.targets[0], Lidar(scene.clouds).scan(x0[:3]))
+    x1 = x0 + np.linspace(0.001, 0.012, 12)
+    X, U, a = ctl._guess(x1, plan)
+    moved = plan.reanchored(x1, ctl.ocp.model.position)
+    expected = moved.x.copy()
+    expected[0] = x1
+    assert X.tobytes() == expected.tobytes() and U.tobytes() == moved.u.tobytes()
+    assert a.tobytes() == ctl.ocp.parameters_of(moved.x_a, moved.u_a).tobytes()
+
+
+def test_a_repeated_scan_is_packed_once_and_the_same_bit_for_bit(scene):
+    """The ladder keeps the last packing of each capacity with the regions' bytes: a scan
+    that sees the same points again (most steps) gets it back, equal bit for bit to a fresh
+    packing wherever the UAV is; new points, or a region trimmed to its nearest points
+    (which depends on where the UAV is), are packed afresh."""
+    ladder = RealTimeNMPC(_config()).ladder
+    x0, _ = equilibrium([-18.3, 0.2, 2.0])
+    visible = check_visible(Lidar(scene.clouds).scan(x0[:3]))
+    assert 0 < max(len(v) for v in visible) <= 48
+    scan = ladder.for_scan(visible).scan
+    first = ladder.pack(visible, x0[:3], scan)
+    again = ladder.pack(check_visible([v.copy() for v in visible]), x0[:3] + 0.5, scan)
+    assert again is first
+    assert again.tobytes() == scan.pack(visible, x0[:3] + 0.5).tobytes()
+    moved = check_visible([v + 0.01 for v in visible])
+    assert ladder.pack(moved, x0[:3], scan).tobytes() == scan.pack(moved, x0[:3]).tobytes()
+    # Two points in a slot of one: the nearest is kept, so the packing depends on where.
+    one = ladder.rungs[0].scan
+    two = check_visible([np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])])
+    for z in (0.5, -0.5, 0.5):
+        y = np.array([0.0, 0.0, z])
+        assert ladder.pack(two, y, one).tobytes() == one.pack(two, y).tobytes()
 
 
 def test_euclidean_metric_flies_past_the_corner_on_the_fast_path(scene):

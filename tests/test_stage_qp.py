@@ -134,6 +134,24 @@ def test_warm_start_reuses_the_active_set():
     np.testing.assert_allclose(warm.z, cold.z, atol=1e-2)
 
 
+@pytest.mark.parametrize("method", ["solve", "interior_point"])
+def test_a_bound_qp_solves_what_its_arrays_hold_now_bit_for_bit(method):
+    """bind() checks the arrays once; every call then solves their current contents, the
+    same numbers as solve() or interior_point() given them; bad arrays fail at bind()."""
+    nx, nu, nc = DIMS[1]
+    rng = np.random.default_rng(5)
+    data, _ = _random_qp(rng, nx, nu, nc)
+    bound_qp, free_qp = StageQP(nx, nu, nc, max_outer=500), StageQP(nx, nu, nc, max_outer=500)
+    bound = bound_qp.bind(**data)
+    for _ in range(3):  # the QP of the next instant, written into the same arrays
+        a, b = getattr(bound, method)(), getattr(free_qp, method)(**data)
+        assert a.success and a.z.tobytes() == b.z.tobytes()
+        np.testing.assert_array_equal(bound_qp.active, free_qp.active)
+        data["q"] += 1e-2 * rng.normal(size=data["q"].shape)
+    with pytest.raises(ValueError, match="h must be a contiguous float64 array"):
+        bound_qp.bind(**{**data, "h": data["h"][::2]})
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_reusing_the_factors_of_unchanged_stages_changes_nothing_but_the_work(seed):
     """After an active-set change at stage k the stages above k keep their factors: the

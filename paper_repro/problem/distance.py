@@ -63,19 +63,33 @@ class CloudWeights:
         """
         points = check_cloud(cloud)
         _check_scale("sigma", sigma)
-        if log_presence is None:
-            centroid = points.mean(axis=0)
-            log_w = -np.sum((points - centroid) ** 2, axis=1) / (2.0 * sigma**2)
-        else:
+        log_p = None
+        if log_presence is not None:
             log_p = np.asarray(log_presence, float)
             if log_p.shape != (len(points),) or np.any(log_p > 0) or np.any(np.isnan(log_p)) \
                     or not np.isfinite(log_p).any():
                 raise ValueError(f"log_presence must be ({len(points)},) values <= 0, at least "
                                  "one finite")
-            presence = np.exp(log_p - log_p.max())
-            centroid = presence @ points / presence.sum()
-            log_w = log_p - np.sum((points - centroid) ** 2, axis=1) / (2.0 * sigma**2)
-        return cls(points, centroid, log_w, float(_logsumexp_np(log_w)), float(sigma))
+        return cls(points, *cloud_constants(points, sigma, log_p), float(sigma))
+
+
+def cloud_constants(points: np.ndarray, sigma: float,
+                    log_presence: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+    """(Cen (p,), ln W (m,), ln V) of eq. (9)-(11): the numbers of
+    :meth:`CloudWeights.from_cloud` without its checks, for points already checked (a
+    scan's regions, which :func:`~paper_repro.problem.scan.check_visible` accepted).
+
+    ``points`` : (m, p) finite float array, m ≥ 1, m.  ``sigma`` : σ > 0, m.
+    ``log_presence`` : ``None`` or (m,) float ln ψ_j ≤ 0, at least one finite.
+    """
+    if log_presence is None:
+        centroid = points.mean(axis=0)
+        log_w = -np.sum((points - centroid) ** 2, axis=1) / (2.0 * sigma**2)
+    else:
+        presence = np.exp(log_presence - log_presence.max())
+        centroid = presence @ points / presence.sum()
+        log_w = log_presence - np.sum((points - centroid) ** 2, axis=1) / (2.0 * sigma**2)
+    return centroid, log_w, float(_logsumexp_np(log_w))
 
 
 def sensing_window(r, sensor_range: float, width: float) -> np.ndarray:

@@ -79,7 +79,8 @@ class OCP:
         self._selected = selected_states(model.output)
         self.equilibria = model.equilibria
         self._equilibrium_fn = None  # numeric a -> (x_a, u_a), built on first use
-        self._position_entries = list(model.position)  # never relaxed (see state_box)
+        # never relaxed (see state_box); an index array, cheaper to index with than a list
+        self._position_entries = np.array(model.position, dtype=np.intp)
         self.state_bounds = (np.asarray(model.state_lower, float),
                              np.asarray(model.state_upper, float))
         self.input_bounds = (np.asarray(model.input_lower, float),
@@ -244,7 +245,9 @@ class OCP:
         if self._equilibrium_fn is None:
             e = self.equilibria
             self._equilibrium_fn = (_numeric(e.state), _numeric(e.input))
-        return tuple(fn(np.asarray(a, float)) for fn in self._equilibrium_fn)
+        state, input_ = self._equilibrium_fn
+        a = np.asarray(a, float)
+        return state(a), input_(a)
 
     # Guesses.
 
@@ -287,9 +290,11 @@ def _numeric(fn: ca.Function) -> Callable[[np.ndarray], np.ndarray]:
         if not const[picked].any():
             source = np.argmax(jac, axis=1)
 
+            entries = source[picked]
+
             def gather(v: np.ndarray) -> np.ndarray:
                 out = const.copy()
-                out[picked] = v[source[picked]]
+                out[picked] = v[entries]
                 return out
             return gather
     return lambda v: np.asarray(fn(v), float).ravel()

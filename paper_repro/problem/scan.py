@@ -92,9 +92,10 @@ class ScanLayout:
         return dataclasses.replace(self, capacity=capacity)
 
     @functools.cached_property
-    def _unused_slot(self) -> np.ndarray:
-        """The parameters of a region slot no region fills: one dummy point far away, active
-        = 0 (the same block wherever the vehicle is, so made once)."""
+    def _unused_scan(self) -> np.ndarray:
+        """The parameters of a scan that fills no region slot: in each slot one dummy point far
+        away, active = 0 (the same wherever the vehicle is, so made once; :meth:`pack`
+        copies it and writes the regions in view over it)."""
         cap, dim = self.capacity, self.dim
         pts = np.full((cap, dim), _FAR_AWAY)
         log_w = np.full(cap, PAD_LOG_WEIGHT)
@@ -102,8 +103,15 @@ class ScanLayout:
         log_w[0], mask[0] = 0.0, 1.0
         tail = [np.zeros(dim)] if self.moving else []
         if self.metric == "smooth":
-            return np.concatenate([pts.ravel(order="F"), log_w, [0.0, 0.0], *tail])
-        return np.concatenate([pts.ravel(order="F"), mask, [0.0], *tail])
+            slot = np.concatenate([pts.ravel(order="F"), log_w, [0.0, 0.0], *tail])
+        else:
+            slot = np.concatenate([pts.ravel(order="F"), mask, [0.0], *tail])
+        return np.tile(slot, self.slots)
+
+    @functools.cached_property
+    def _at_rest(self) -> np.ndarray:
+        """The velocity of a region without a prediction, (p,) zeros, m/s."""
+        return np.zeros(self.dim)
 
     def pack(self, visible: Sequence[np.ndarray], position, velocities=None) -> np.ndarray:
         """Pack a LiDAR scan into the parameter layout.
@@ -128,52 +136,67 @@ class ScanLayout:
         if velocities is not None and not self.moving:
             raise ValueError("velocities need a layout built for moving regions (a controller "
                              "built with nmpc.prediction 'oracle' or 'kalman')")
-        if velocities is None:
-            velocities = [np.zeros(dim)] * len(visible)
-        elif len(velocities) != len(visible):
+        if velocities is not None and len(velocities) != len(visible):
             raise ValueError(f"velocities must hold one ({dim},) array per region of visible "
                              f"({len(visible)}), got {len(velocities)}")
-        # Per region in view: (points, squared ranges, ln ψ or None, velocity).
+        windowed = self.window > 0 and self.metric == "smooth"
+        in_view = [i for i, v in enumerate(visible) if len(v)]
+        # Squared ranges rank the regions and the points when a slot is short of room, and
+        # set the sensing window; they are not needed otherwise (most scans).
+        crowded = len(in_view) > slots
+        # Per region in view: (points, squared ranges or None, ln ψ or None, velocity).
         seen = []
-        for i, (v, vel) in enumerate(zip(visible, velocities)):
-            if not len(v):
-                continue
-            sq = np.sum((v - ref) ** 2, axis=1)
+        for i in in_view:
+            v = visible[i]
+            sq = (np.sum((v - ref) ** 2, axis=1) if windowed or crowded or len(v) > cap
+                  else None)
             log_p = None
-            if self.window > 0 and self.metric == "smooth":
+            if windowed:
                 log_p = dist.sensing_window(np.sqrt(sq), self.sensor_range, self.window)
                 inside = np.isfinite(log_p)
                 if not inside.any():
                     continue
                 v, sq, log_p = v[inside], sq[inside], log_p[inside]
-            seen.append((v, sq, log_p, as_vector(f"velocities[{i}]", vel, dim)))
+            velocity = (self._at_rest if velocities is None
+                        else as_vector(f"velocities[{i}]", velocities[i], dim))
+            seen.append((v, sq, log_p, velocity))
         if len(seen) > slots:
             order = np.argsort([s[1].min() for s in seen])[:slots]
             seen = [seen[i] for i in order]
-        blocks = []
-        for slot in range(slots):
-            if slot >= len(seen):
-                blocks.append(self._unused_slot)
-                continue
-            pts = np.full((cap, dim), _FAR_AWAY)
-            log_w = np.full(cap, PAD_LOG_WEIGHT)
-            mask = np.zeros(cap)
-            cloud, sq, log_p, velocity = seen[slot]
-            weights = dist.CloudWeights.from_cloud(cloud, self.sigma, log_p)
-            keep = np.arange(len(cloud))
-            if len(cloud) > cap:
+        # Every slot unused, then the regions in view written over the first ones.
+        out = self._unused_scan.copy()
+        per_slot = len(out) // slots
+        for slot, (cloud, sq, log_p, velocity) in enumerate(seen):
+            # The scan's regions are checked (finite (k, p) floats): weigh them unchecked.
+            _, log_w, log_v = dist.cloud_constants(cloud, self.sigma, log_p)
+            if len(cloud) > cap:  # the nearest points, in cloud order
                 keep = np.sort(np.argsort(sq)[:cap])
-            pts[: len(keep)] = cloud[keep]
-            log_w[: len(keep)] = weights.log_weights[keep]
-            mask[: len(keep)] = 1.0
-            log_v, active = weights.log_volume, 1.0
-            tail = [velocity] if self.moving else []
-            if self.metric == "smooth":
-                blocks.append(np.concatenate([pts.ravel(order="F"), log_w, [log_v, active],
-                                              *tail]))
-            else:
-                blocks.append(np.concatenate([pts.ravel(order="F"), mask, [active], *tail]))
-        return np.concatenate(blocks)
+                cloud, log_w = cloud[keep], log_w[keep]
+            self._fill_slot(out[slot * per_slot:(slot + 1) * per_slot], cloud, log_w, log_v,
+                            velocity)
+        return out
+
+    def _fill_slot(self, block: np.ndarray, points: np.ndarray, log_w: np.ndarray,
+                   log_v: float, velocity: np.ndarray) -> None:
+        """Write a region into a slot's parameters ``block`` that hold an unused slot: its
+        ``points`` (k ≤ capacity, p), column-major, then ln W (k,) (the Euclidean metric: the
+        mask, 1 for each point), ln V, active = 1 and (``moving``) its velocity. The padding
+        of an unused slot (points far away, ln W = −1e30, mask 0) stays beyond the k points
+        (the unused slot's one dummy point, ln W = 0 and mask 1, is overwritten by the
+        first)."""
+        cap, dim, k = self.capacity, self.dim, len(points)
+        block[:cap * dim].reshape(dim, cap)[:, :k] = points.T
+        at = cap * dim
+        if self.metric == "smooth":
+            block[at:at + k] = log_w
+            block[at + cap] = log_v
+            at += cap + 1
+        else:
+            block[at:at + k] = 1.0
+            at += cap
+        block[at] = 1.0  # active
+        if self.moving:
+            block[at + 1:at + 1 + dim] = velocity
 
     def region_barrier(self):
         """Symbolic parameters of one region slot and β(y) = D(y) − d_min (eq. 17).
@@ -290,6 +313,27 @@ def check_visible(visible, dim: int = 3) -> tuple[np.ndarray, ...]:
                              "non-finite returns before solving)")
         regions.append(arr)
     return _CheckedScan(regions, dim)
+
+
+def drop_non_finite(visible, dim: int = 3) -> tuple[Sequence[np.ndarray], int]:
+    """A LiDAR scan without its non-finite points (a bad return is dropped, not flown on), and
+    how many were dropped.
+
+    ``visible`` : one (k_i, p) array per region. When every region then is a (k_i, ``dim``)
+    float array, the scan comes back in the form :func:`check_visible` returns (its regions
+    are finite now, so a solver does not check them again); otherwise as a list, for
+    :func:`check_visible` to refuse with its message.
+    """
+    clean, dropped, checked = [], 0, True
+    for v in visible:
+        if len(v) and not np.isfinite(v).all():  # the points of the rows that are not finite
+            ok = np.isfinite(v).all(axis=1)
+            v = v[ok]
+            dropped += int(len(ok) - ok.sum())
+        clean.append(v)
+        checked = checked and (type(v) is np.ndarray and v.dtype == np.float64
+                               and v.ndim == 2 and v.shape[1] == dim)
+    return (_CheckedScan(clean, dim) if checked else clean), dropped
 
 
 class _CheckedScan(tuple):

@@ -3,6 +3,7 @@ of the stage-wise QP it fills."""
 
 from __future__ import annotations
 
+import bisect
 import itertools
 from typing import NamedTuple
 
@@ -203,24 +204,39 @@ class LinearisationLadder:
                     scan, NativeFunction(fn if cap == top else linearisation(ocp, scan)),
                     NativeFunction(linearisation(ocp, scan, values_only=True))
                     if values else None))
-        self._empty = {}  # capacity -> packed parameters of a scan that sees nothing
+        self._capacities = [rung.scan.capacity for rung in self.rungs]
+        self._last = {}  # capacity -> (the regions' bytes, their packing): see pack()
 
     def for_scan(self, visible) -> Rung:
         """The rung of the smallest capacity that holds the scan."""
-        need = max((len(v) for v in visible), default=0)
-        for rung in self.rungs:
-            if need <= rung.scan.capacity:
-                return rung
-        return self.rungs[-1]  # the scan keeps the nearest points
+        need = max(map(len, visible), default=0)
+        i = bisect.bisect_left(self._capacities, need)
+        return self.rungs[min(i, len(self.rungs) - 1)]  # too many: the nearest points kept
 
     def pack(self, visible, position, scan: ScanLayout, velocities=None) -> np.ndarray:
-        """:meth:`ScanLayout.pack`, except that the packing of an empty scan, the same wherever
-        the vehicle is, is made once per capacity (empty scans are common: nothing in range)."""
-        if any(len(v) for v in visible):
+        """:meth:`ScanLayout.pack` of a checked scan
+        (:func:`~paper_repro.problem.scan.check_visible`), made once for a scan that repeats.
+
+        Where the packing does not depend on where the vehicle is, it is a function of the
+        scan's points alone: nothing in view (the vehicle is out of range: half the steps of
+        a paper mission), or no sensing window, no velocities and every region in view
+        fitting its slot and the slots. The vehicle then sees exactly the previous step's
+        points most of the time (97 % of the paper mission's steps with a region in view),
+        so the last such packing of each capacity is kept with the regions' bytes and
+        returned, bit for bit the same, while they do not change. The result is shared:
+        read it, do not write it."""
+        in_view = [v for v in visible if len(v)]
+        if in_view and not (velocities is None and (scan.window == 0 or scan.metric != "smooth")
+                            and len(in_view) <= scan.slots
+                            and max(map(len, in_view)) <= scan.capacity):
             return scan.pack(visible, position, velocities)
-        if scan.capacity not in self._empty:
-            self._empty[scan.capacity] = scan.pack((), position)
-        return self._empty[scan.capacity]
+        key = tuple(v.tobytes() for v in visible)
+        last = self._last.get(scan.capacity)
+        if last is None or last[0] != key:
+            # Nothing in view packs the same with or without velocities (every slot unused).
+            packed = scan.pack(visible, position, velocities if in_view else None)
+            last = self._last[scan.capacity] = (key, packed)
+        return last[1]
 
     @staticmethod
     def evaluate(fn, x0, X, U, a, params):
@@ -337,10 +353,11 @@ class QPLayout:
             k += count * size * size
         return total
 
-    def scatter(self, X, U, a) -> np.ndarray:
+    def scatter(self, X, U, a, out: np.ndarray | None = None) -> np.ndarray:
         """w of the iterate: X (N, n_x) = x_1..x_N, U (N, n_u), a (n_a,) at every stage; the
-        carried β are 0 (they are recomputed, never stored)."""
-        w = np.zeros(self.nw)
+        carried β are 0 (they are recomputed, never stored). ``out``: an (n_w,) array to
+        write into, whose carried β entries are 0 (a buffer only this writes)."""
+        w = np.zeros(self.nw) if out is None else out
         w[self.ix] = X
         w[self.iu] = U
         w[self.ia] = a

@@ -233,21 +233,9 @@ class StageQP:
         """h: H blocks, ab: [A_j B_j] blocks (each column-major, concatenated), q, b, d, lb,
         ub: vectors (±inf for no bound); c: C column-major. Arrays must be contiguous float64
         of the sizes the structure implies; the returned ``z`` is a copy. ``max_outer``
-        overrides the constructor's budget for this call."""
-        h, q, ab, b, c, d, lb, ub = self._addresses(h, q, ab, b, c, d, lb, ub)
-        active, lam, lam_c = self._trial
-        active[:], lam[:], lam_c[:] = self.active, self.lam, self.lam_c
-        nx, nu, p_active, p_lam, p_lam_c, work, work_size, z, stats = self._fixed
-        info = self._lib.stage_qp_solve(
-            self.horizon, nx, nu, h, q, ab, b, self.nc, c, d, lb, ub, p_active, p_lam, p_lam_c,
-            self.rho, self.eq_tol, self.kkt_tol,
-            self.max_outer if max_outer is None else int(max_outer), self.max_passes,
-            int(self.reuse_factors), work, work_size, z, stats)
-        s = self._stats
-        if info == 0:  # keep the active set for the next call only when it is right
-            self.active[:], self.lam[:], self.lam_c[:] = active, lam, lam_c
-        return StageQPResult(self.z.copy(), STATUS.get(info, f"error {info}"), s.outer,
-                             s.passes, s.changes, s.n_active, s.stages)
+        overrides the constructor's budget for this call. (A QP solved again and again from
+        the same arrays, refilled in place, is checked once with :meth:`bind`.)"""
+        return self._solve(self._addresses(h, q, ab, b, c, d, lb, ub), max_outer)
 
     def interior_point(self, h, q, ab, b, c, d, lb, ub) -> InteriorPointResult:
         """The same QP by the interior-point method on the same Riccati kernels (Mehrotra's
@@ -262,8 +250,35 @@ class StageQP:
         accuracy fades as λ/s spans more than double precision resolves. When the polish
         fails, the interior point's iterate is returned (``polished`` False). Same
         arguments as :meth:`solve`."""
-        args = (h, q, ab, b, c, d, lb, ub)
-        h, q, ab, b, c, d, lb, ub = self._addresses(*args)
+        return self._interior_point(self._addresses(h, q, ab, b, c, d, lb, ub))
+
+    def bind(self, h, q, ab, b, c, d, lb, ub) -> BoundStageQP:
+        """The QP whose data live in these arrays (same arguments as :meth:`solve`), checked
+        once: refill them in place and call the result's ``solve()`` or
+        ``interior_point()`` as often as needed. The arrays must stay where they are (the
+        binding keeps them alive)."""
+        return BoundStageQP(self, (h, q, ab, b, c, d, lb, ub))
+
+    def _solve(self, addresses: tuple[int, ...], max_outer: int | None) -> StageQPResult:
+        """:meth:`solve` on the arrays at these addresses (checked by :meth:`_addresses`)."""
+        h, q, ab, b, c, d, lb, ub = addresses
+        active, lam, lam_c = self._trial
+        active[:], lam[:], lam_c[:] = self.active, self.lam, self.lam_c
+        nx, nu, p_active, p_lam, p_lam_c, work, work_size, z, stats = self._fixed
+        info = self._lib.stage_qp_solve(
+            self.horizon, nx, nu, h, q, ab, b, self.nc, c, d, lb, ub, p_active, p_lam, p_lam_c,
+            self.rho, self.eq_tol, self.kkt_tol,
+            self.max_outer if max_outer is None else int(max_outer), self.max_passes,
+            int(self.reuse_factors), work, work_size, z, stats)
+        s = self._stats
+        if info == 0:  # keep the active set for the next call only when it is right
+            self.active[:], self.lam[:], self.lam_c[:] = active, lam, lam_c
+        return StageQPResult(self.z.copy(), STATUS.get(info, f"error {info}"), s.outer,
+                             s.passes, s.changes, s.n_active, s.stages)
+
+    def _interior_point(self, addresses: tuple[int, ...]) -> InteriorPointResult:
+        """:meth:`interior_point` on the arrays at these addresses."""
+        h, q, ab, b, c, d, lb, ub = addresses
         if self._ipm_work is None:
             self._ipm_work = np.zeros(self._lib.stage_ipm_workspace(
                 self.horizon, self.nx.ctypes.data, self.nu.ctypes.data, self.nc))
@@ -280,7 +295,7 @@ class StageQP:
         self.active[:] = active
         self.lam[:] = np.where(active != 0, lam, 0.0)
         self.lam_c[:] = 0.0
-        polished = self.solve(*args, max_outer=POLISH_BUDGET)
+        polished = self._solve(addresses, max_outer=POLISH_BUDGET)
         if polished.success:  # exact, even from an iterate short of ipm_tol
             result.z, result.polished, result.status = polished.z, True, "solved"
         else:  # the next call starts from the interior point's set
@@ -296,3 +311,31 @@ class StageQP:
                 raise ValueError(f"{name} must be a contiguous float64 array of "
                                  f"{self._expected[name]} entries")
         return tuple(a.ctypes.data for a in args)
+
+
+class BoundStageQP:
+    """A :class:`StageQP` bound to the arrays its QP data live in (:meth:`StageQP.bind`).
+
+    The real-time iteration writes every QP into the same buffers (the compiled
+    linearisation's outputs, the controller's bounds), so their types, sizes and addresses
+    are checked and looked up once here rather than at every call: a ctypes address costs
+    about a microsecond, and eight checks and addresses were a tenth of the QP's wrapper.
+    Same results as :meth:`StageQP.solve` on the same arrays, bit for bit.
+
+    Attributes
+    ----------
+    qp : the solver (its active set and multipliers are shared with every binding).
+    arrays : (h, q, ab, b, c, d, lb, ub), kept alive at their addresses.
+    """
+
+    def __init__(self, qp: StageQP, arrays: tuple[np.ndarray, ...]):
+        self.qp, self.arrays = qp, arrays
+        self._addresses = qp._addresses(*arrays)
+
+    def solve(self, max_outer: int | None = None) -> StageQPResult:
+        """:meth:`StageQP.solve` on the bound arrays' current contents."""
+        return self.qp._solve(self._addresses, max_outer)
+
+    def interior_point(self) -> InteriorPointResult:
+        """:meth:`StageQP.interior_point` on the bound arrays' current contents."""
+        return self.qp._interior_point(self._addresses)

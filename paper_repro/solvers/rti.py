@@ -39,15 +39,17 @@ sampling instant, stopping early when the step is small, each step shortened by
 from __future__ import annotations
 
 import time
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
 
+from paper_repro._native import NativeFunction
 from paper_repro.config import QP_SOLVERS, Config
 from paper_repro.problem.ocp import OCP, NMPCSolution
 from paper_repro.problem.scan import check_visible
 from paper_repro.solvers.linearisation import LinearisationLadder, QPLayout
-from paper_repro.solvers.riccati_qp import StageQP
+from paper_repro.solvers.riccati_qp import BoundStageQP, StageQP
 from paper_repro.validation import as_vector
 from paper_repro.vehicles.base import VehicleModel
 
@@ -114,7 +116,18 @@ class RealTimeNMPC:
         self.qp = QPChain(self.layout, self.qp_solver)
         self.line_search = MeritLineSearch(self.layout, max_trials=4 if line_search else 0)
         self._lbw, self._ubw = self.layout.bounds(ocp)
-        self._position = list(ocp.model.position)
+        self._position = np.array(ocp.model.position, dtype=np.intp)
+        # Buffers of every solve, whose contents never outlive it: the iterate w (n_w,) (its
+        # carried β stay 0) and the step's bounds lb − w, ub − w (n_w,).
+        nw = self.layout.nw
+        self._w, self._step_lower, self._step_upper = np.zeros(nw), np.empty(nw), np.empty(nw)
+        self._anchor = np.zeros(ocp.nx)  # the move of the previous plan, m (position only)
+        # A compiled rung writes its QP into the same buffers at every call: each rung's QP is
+        # bound to them once (checked and addressed there, not at every step).
+        self._bound_qps = {rung.linearisation: self.qp.bind(*rung.linearisation.outputs[:5],
+                                                            self._step_lower, self._step_upper)
+                           for rung in self.ladder.rungs
+                           if isinstance(rung.linearisation, NativeFunction)}
 
     @property
     def qp_counts(self) -> dict[str, int]:
@@ -144,20 +157,13 @@ class RealTimeNMPC:
         rung = self.ladder.for_scan(visible)
         params = np.concatenate([target, self.ladder.pack(visible, ocp.output(x0), rung.scan,
                                                           velocities)])
-        if previous is None:
-            guess = self.hover_guess(x0)
-        elif self._position:
-            guess = previous.reanchored(x0, self._position)
-        else:
-            guess = previous.shifted()
-        X = np.array(guess.x, dtype=float)  # (N+1, n_x)
-        X[0] = x0
+        X, U, a = self._guess(x0, previous)
         lbw, ubw = self._lbw, self._ubw
         box = ocp.state_box(x0)
         if box[0] is not ocp.state_bounds[0] or box[1] is not ocp.state_bounds[1]:
             lbw, ubw = layout.bounds(ocp, box)  # x0 violates 𝒳: the relaxed box (rare)
-        U = np.array(guess.u, dtype=float)
-        a = ocp.parameters_of(guess.x_a, guess.u_a)
+        bound_qp = self._bound_qps.get(rung.linearisation)
+        lower, upper = self._step_lower, self._step_upper
 
         def values(dw, alpha):  # (cost, gap, eq) at the iterate moved by α·Δw
             dx, du, da = layout.gather(dw)
@@ -166,11 +172,14 @@ class RealTimeNMPC:
 
         success, status, it, merit = False, "iterated", 0, np.nan
         for it in range(1, self.max_iter + 1):  # noqa: B007 - `it` is reported below
-            w = layout.scatter(X[1:], U, a)
+            w = layout.scatter(X[1:], U, a, out=self._w)
             h, q, j, gap, eq, cost = self.ladder.evaluate(rung.linearisation, x0, X[1:], U, a,
                                                           params)
             damped = self.line_search.damp(h)
-            dw = self.qp.solve(h, q, j, gap, eq, lbw - w, ubw - w)
+            np.subtract(lbw, w, out=lower)
+            np.subtract(ubw, w, out=upper)
+            dw = (self.qp.solve_bound(bound_qp) if bound_qp is not None
+                  else self.qp.solve(h, q, j, gap, eq, lower, upper))
             if dw is None:
                 success, status = False, "qp_failed"
                 break
@@ -208,6 +217,24 @@ class RealTimeNMPC:
     def obstacle_parameters(self, visible, position, velocities=None) -> np.ndarray:
         """The LiDAR scan in the parameter layout of the config's capacity."""
         return self.ocp.scan.pack(visible, position, velocities)
+
+    def _guess(self, x0: np.ndarray, previous: NMPCSolution | None):
+        """The iterate the SQP starts from, as new arrays: X (N+1, n_x) with X[0] = x0, U
+        (N, n_u) and a (n_a,). The previous plan moved to x0
+        (:meth:`NMPCSolution.reanchored`, the same numbers without building it), shifted in
+        time for a vehicle without position states, or rest at x0 without a previous plan."""
+        if previous is None or not len(self._position):
+            guess = self.hover_guess(x0) if previous is None else previous.shifted()
+            X = np.array(guess.x, dtype=float)
+            X[0] = x0
+            return (X, np.array(guess.u, dtype=float),
+                    self.ocp.parameters_of(guess.x_a, guess.u_a))
+        position, move = self._position, self._anchor
+        move[position] = x0[position] - previous.x[0, position]
+        X = previous.x + move
+        X[0] = x0
+        return (X, np.array(previous.u, dtype=float),
+                self.ocp.parameters_of(previous.x_a + move, previous.u_a))
 
 
 # --- the QP backends ---------------------------------------------------------------------------
@@ -265,19 +292,35 @@ class QPChain:
 
     def solve(self, h, q, j, gap, eq, lb, ub) -> np.ndarray | None:
         """The step Δw of the QP min ½ΔwᵀHΔw + qᵀΔw s.t. the linearised gaps and terminal rows,
-        lb ≤ Δw ≤ ub; ``None`` when no backend solves it."""
-        n_ab = self.layout.n_ab
-        dw = None
+        lb ≤ Δw ≤ ub; ``None`` when no backend solves it. (The same QP from the same arrays
+        at every step: :meth:`bind` them once, then :meth:`solve_bound`.)"""
+        return self.solve_bound(self.bind(h, q, j, gap, eq, lb, ub))
+
+    def bind(self, h, q, j, gap, eq, lb, ub) -> BoundQP:
+        """The QP whose blocks live in these arrays (a compiled linearisation's output buffers
+        and the controller's bound buffers), checked once; refill them in place and solve
+        with :meth:`solve_bound` as often as needed."""
+        riccati = d = None
         if self.riccati is not None:
-            args = (h, q, j[:n_ab], gap, j[n_ab:], -eq, lb, ub)
+            n_ab = self.layout.n_ab
+            d = np.empty_like(eq)  # C x_N = d: the terminal rows' right-hand side, −eq
+            riccati = self.riccati.bind(h, q, j[:n_ab], gap, j[n_ab:], d, lb, ub)
+        return BoundQP((h, q, j, gap, eq, lb, ub), d, riccati)
+
+    def solve_bound(self, bound: BoundQP) -> np.ndarray | None:
+        """:meth:`solve` on the current contents of a bound QP's arrays."""
+        dw = None
+        riccati = bound.riccati
+        if riccati is not None:
+            np.negative(bound.arrays[4], out=bound.d)
             if not self._interior_next:
-                res = self.riccati.solve(*args, max_outer=self.budget)
+                res = riccati.solve(max_outer=self.budget)
                 if res.success:
                     dw = res.z
                     self.counts["riccati"] += 1
             if dw is None and self.budget is not None:
                 before = self.riccati.active.copy()
-                ipm = self.riccati.interior_point(*args)
+                ipm = riccati.interior_point()
                 if ipm.success:
                     dw = ipm.z
                     self.counts["ipm"] += 1
@@ -289,7 +332,7 @@ class QPChain:
             else:
                 self._interior_next = False
         if dw is None:
-            dw = self._solve_hpipm(h, q, j, gap, eq, lb, ub)
+            dw = self._solve_hpipm(*bound.arrays)
         if dw is None or not np.isfinite(dw).all():
             self.counts["failed"] += 1
             return None
@@ -320,6 +363,23 @@ class QPChain:
         if self.riccati is not None:
             self.riccati.seed(dw, lb, ub, np.asarray(sol["lam_x"]).ravel())
         return dw
+
+
+class BoundQP(NamedTuple):
+    """A QP bound to the arrays its data live in (:meth:`QPChain.bind`).
+
+    Attributes
+    ----------
+    arrays : (h, q, j, gap, eq, lb, ub), as :meth:`QPChain.solve` takes them.
+    d : (n_c,) buffer of the terminal rows' right-hand side −eq (``None`` without the
+        Riccati solver).
+    riccati : the Riccati solver bound to them
+        (:class:`~paper_repro.solvers.riccati_qp.BoundStageQP`; ``None`` for HPIPM only).
+    """
+
+    arrays: tuple[np.ndarray, ...]
+    d: np.ndarray | None
+    riccati: BoundStageQP | None
 
 
 # --- the step size -----------------------------------------------------------------------------
