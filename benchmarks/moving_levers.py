@@ -23,7 +23,7 @@ from paper_repro import Config, paths
 from paper_repro import studies as S
 from paper_repro.analysis import statistics
 from paper_repro.cli.args import seed_list
-from paper_repro.evidence.golden import stamp
+from paper_repro.evidence.golden import layer_of, stamp
 from paper_repro.studies.catalogue import PASSAGE_STEPS, Study, passage_spec
 
 PREDICTED = ("oracle", "kalman")
@@ -184,7 +184,8 @@ def main() -> None:
                 if args.full_seeds else "")
         full += f" --static-seeds {args.static_seeds}" if args.static_seeds else ""
         stamp(out, f"python benchmarks/moving_levers.py --save --seeds {args.seeds} --levers "
-                   f"{' '.join(args.levers)}{full}")
+                   f"{' '.join(args.levers)}{full}",
+              layer_of(*(s.config for _, _, study in groups for s in study.specs)))
 
 
 if __name__ == "__main__":

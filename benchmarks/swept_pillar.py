@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from paper_repro import Config, make_controller, paths, simulate
-from paper_repro.evidence.golden import stamp
+from paper_repro.evidence.golden import layer_of, stamp
 from paper_repro.studies.catalogue import moving_design_controller
 from paper_repro.world.motion import Motion
 from paper_repro.world.scene import Region, Scene
@@ -60,7 +60,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=1200)
     parser.add_argument("--save", action="store_true")
     args = parser.parse_args()
-    scene, rows = pillar_scene(), []
+    scene, rows, configs = pillar_scene(), [], []
     for name, (prediction, damped, qp_solver, design) in VARIANTS.items():
         base = Config()
         cfg = dataclasses.replace(
@@ -70,6 +70,7 @@ def main() -> None:
                                            max_steps=args.steps))
         if design:  # the smoothed metric's: its swept margin and its longer prediction
             cfg = moving_design_controller(cfg, "smooth")
+        configs.append(cfg)
         controller = make_controller(cfg)
         result = simulate(cfg, scene=scene, controller=controller, progress=False)
         ms = 1e3 * np.asarray(result.solve_time, float)
@@ -91,7 +92,7 @@ def main() -> None:
         table.drop(columns=flight[1:]).to_csv(out / "tails.csv", index=False,
                                               float_format="%.4g")
         stamp(out, f"python benchmarks/swept_pillar.py --save --steps {args.steps}",
-              "riccati-ipm")
+              layer_of(*configs))
 
 
 if __name__ == "__main__":

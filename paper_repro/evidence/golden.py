@@ -8,9 +8,11 @@ makes. Two things enforce it.
   ``crossing``, the IPOPT reference at one instant-rich window, the ground robot; in the
   ``"map"`` layer (:data:`LAYERS`), the noisy LiDAR through the local map; in the
   ``"guide"`` layer, the same with the guide; in the ``"riccati-ipm"`` layer, the crossing
-  with the interior-point QP chain the moving-obstacle study flies). Their states and inputs
-  are committed in ``figures/golden/<name>.npy`` and ``figures/golden/golden.json`` holds the
-  SHA-256 of each file and of the whole set, the *golden hash*. ``tests/test_evidence.py``
+  with the interior-point QP chain the moving-obstacle study flies; in the ``"sweep"``
+  layer, the crossing with that study's design, the region's swept path included). Their
+  states and inputs are committed in ``figures/golden/<name>.npy`` and
+  ``figures/golden/golden.json`` holds the SHA-256 of each file and of the whole set, the
+  *golden hash*. ``tests/test_evidence.py``
   flies them and compares against the committed arrays (:func:`check_golden`,
   :data:`POSITION_TOLERANCE`): a change of code that moves a flight fails there.
 * **Evidence stamps**: each committed evidence set (``figures/``, the ``paper-timeline``
@@ -25,7 +27,7 @@ makes. Two things enforce it.
   ``"map"`` hash and the guided ones the ``"guide"`` hash, so a change to the map retires
   them all, a change to the guide only the guided ones, and every other run and set stays as
   it is. Likewise the runs that solve their QPs with the ``"riccati-ipm"`` chain carry that
-  layer's hash.
+  layer's hash, and those that sweep a moving region's path the ``"sweep"`` hash.
 
 A pure refactor leaves every golden flight within tolerance: the committed files, the hash,
 the stamps and the cache keys stay as they are, and nothing needs re-flying.
@@ -70,9 +72,12 @@ class GoldenFlight:
         (a window rich in obstacles, flown with a slow solver); ``None``: the scene's start.
     qp_solver : the real-time iteration's QP chain (``SolverParams.qp_solver``).
     vehicle : ``"quadrotor"`` or ``"unicycle"`` (the ground robot's planar L-wall).
+    barrier : ``(field, value)`` pairs of :class:`~paper_repro.config.BarrierParams` that
+        differ from the paper's (the moving design's swept path and margin).
+    prediction_ts : the prediction step (``NMPCParams.prediction_ts``; ``None``: T_s).
     layer : ``""`` (the core), ``"map"`` (the noisy LiDAR read through the local map),
-        ``"guide"`` (the same with the guide) or ``"riccati-ipm"`` (the interior-point QP
-        chain) (:data:`LAYERS`).
+        ``"guide"`` (the same with the guide), ``"riccati-ipm"`` (the interior-point QP
+        chain) or ``"sweep"`` (the swept path of a moving region) (:data:`LAYERS`).
     """
 
     name: str
@@ -88,6 +93,8 @@ class GoldenFlight:
     qp_solver: str = "riccati"
     start: tuple[str, int] | None = None
     vehicle: str = "quadrotor"
+    barrier: tuple = ()
+    prediction_ts: float | None = None
     layer: str = ""
 
     def config(self):
@@ -105,7 +112,9 @@ class GoldenFlight:
                 simulation=dataclasses.replace(cfg.simulation, scenario=self.scenario,
                                                kind=self.kind, seed=self.seed,
                                                max_steps=self.steps),
-                nmpc=dataclasses.replace(cfg.nmpc, prediction=self.prediction))
+                nmpc=dataclasses.replace(cfg.nmpc, prediction=self.prediction,
+                                         prediction_ts=self.prediction_ts),
+                barrier=dataclasses.replace(cfg.barrier, **dict(self.barrier)))
         if self.layer in ("map", "guide"):
             from paper_repro.config import GuideParams
             from paper_repro.world.lidar import NOISY_LIDAR
@@ -153,27 +162,37 @@ GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
                  "point where it runs out)", scenario="crossing", steps=900,
                  prediction="oracle", line_search=True, qp_solver="riccati-ipm",
                  layer="riccati-ipm"),
+    GoldenFlight("crossing-smooth-design", "the crossing with the moving study's design "
+                 "(smoothed metric): the region's swept path and its wider margin, the "
+                 "0.525 s prediction, the damped RTI on the interior-point chain",
+                 scenario="crossing", steps=900, prediction="oracle", line_search=True,
+                 qp_solver="riccati-ipm", prediction_ts=0.015,
+                 barrier=(("moving_d_min", 3.0), ("sweep_time", 1.0)), layer="sweep"),
 )
 
-LAYERS = ("", "map", "guide", "riccati-ipm")
+LAYERS = ("", "map", "guide", "riccati-ipm", "sweep")
 """The layers of the golden flights. The core (``""``) covers what every run flies; the
 ``"map"`` layer the local map (``sensor.map_voxel`` > 0), the ``"guide"`` layer the guide on
 the map (``guide.planner`` other than ``"none"``), and the ``"riccati-ipm"`` layer the
-interior-point QP chain (``solver.qp_solver``), which only some runs use. A layer's hash
+interior-point QP chain (``solver.qp_solver``), which only some runs use, and the
+``"sweep"`` layer the swept path of a region predicted to move (``barrier.sweep_time`` > 0),
+flown on that chain by the moving study's design. A layer's hash
 covers its flights and those of the layers it is built on (:data:`LAYER_BASES`). A run's
 cache key and an evidence set's stamp hold the golden hash of the layers they use
 (:func:`golden_hash`, :func:`layer_of`): a change to the map retires the cached runs and
 stamps that use the map (guided or not), a change to the guide those that use the guide, a
 change to the interior point those that use it, and the others stay as they are."""
 
-LAYER_BASES = {"": (), "map": ("",), "guide": ("", "map"), "riccati-ipm": ("",)}
+LAYER_BASES = {"": (), "map": ("",), "guide": ("", "map"), "riccati-ipm": ("",),
+               "sweep": ("", "riccati-ipm")}
 """Layer → the layers it is built on."""
 
 
 def layer_of(*configs) -> str:
     """The golden layers runs of ``configs`` use, joined by ``"+"``: ``"guide"`` when any is
-    guided, else ``"map"`` when any reads the local map; and ``"riccati-ipm"`` when any solves
-    its QPs with that chain. The core ``""`` when none of these."""
+    guided, else ``"map"`` when any reads the local map; ``"riccati-ipm"`` when any solves
+    its QPs with that chain; and ``"sweep"`` when any sweeps a moving region's path. The core
+    ``""`` when none of these."""
     used = []
     if any(c.guide.planner != "none" for c in configs):
         used.append("guide")
@@ -181,6 +200,8 @@ def layer_of(*configs) -> str:
         used.append("map")
     if any(c.solver.qp_solver == "riccati-ipm" for c in configs):
         used.append("riccati-ipm")
+    if any(c.barrier.sweep_time > 0 for c in configs):
+        used.append("sweep")
     return "+".join(used)
 
 
