@@ -173,23 +173,16 @@ class BarrierParams:
                 f"where the penalty is zero), got {self.epsilon!r}"
             )
         require_choice("form", self.form, ("printed", "definition"))
-        if not (is_number(self.reaction_time) and math.isfinite(self.reaction_time)
-                and self.reaction_time >= 0):
-            raise ValueError(f"reaction_time must be a finite number >= 0 (s; 0 is off), got "
-                             f"{self.reaction_time!r}")
-        if not (is_number(self.sweep_time) and math.isfinite(self.sweep_time)
-                and 0 <= self.sweep_time <= 5):
-            raise ValueError(f"sweep_time must be a number in [0, 5] (s; 0 is off), got "
-                             f"{self.sweep_time!r}")
+        for name, high in (("reaction_time", math.inf), ("sweep_time", 5.0),
+                           ("equilibrium_lookahead", 10.0)):
+            value = getattr(self, name)
+            if not (is_number(value) and math.isfinite(value) and 0 <= value <= high):
+                raise ValueError(f"{name} must be a finite number in [0, {high:g}] (s; 0 is "
+                                 f"off), got {value!r}")
         if not (is_number(self.moving_d_min) and math.isfinite(self.moving_d_min)
                 and (self.moving_d_min == 0 or self.moving_d_min >= self.d_min)):
             raise ValueError(f"moving_d_min must be 0 (off) or a finite number >= d_min = "
                              f"{self.d_min} (m²), got {self.moving_d_min!r}")
-        if not (is_number(self.equilibrium_lookahead)
-                and math.isfinite(self.equilibrium_lookahead)
-                and 0 <= self.equilibrium_lookahead <= 10):
-            raise ValueError(f"equilibrium_lookahead must be a number in [0, 10] (s; 0 is "
-                             f"off), got {self.equilibrium_lookahead!r}")
 
     @property
     def decay(self) -> float:
@@ -380,13 +373,9 @@ class SimulationParams:
         than ``stall_distance`` from its target. Under the printed weights the speed of a
         free approach is about (distance to target)/150 s, i.e. 1 cm/s at 1.5 m, so a
         threshold of 1 m would flag every normal final approach; 2 m leaves a third above it.
-    approach_time : s, *chosen* 150. The pace a ``"random-crossing"`` scene times its
-        crossings to (:class:`~paper_repro.world.random_scenes.RandomSceneParams`
-        ``approach_time``): each region reaches the flight line when a UAV approaching the
-        target as e^{−t/approach_time} would. 150 s is the printed set-up's (its lateral time
-        constant, :mod:`paper_repro.analysis.clock`); a controller that flies faster needs its
-        crossings timed sooner, or it passes before the regions arrive. Only
-        ``"random-crossing"`` reads it: any other scene with another value is refused.
+    approach_time : s, *chosen* 150 (the printed set-up's lateral time constant). The pace a
+        ``"random-crossing"`` scene times its crossings to (``RandomSceneParams``): a faster
+        controller needs them sooner, or it passes first. Other scenes refuse another value.
     fault_steps : *chosen* 100 (1 s). A step whose measured state is not finite, or whose
         solve cannot start, is a *fault*: it is recorded and the previous plan is applied
         (shifted, as after a failed solve). After more than ``fault_steps`` faults in a row
@@ -416,13 +405,11 @@ class SimulationParams:
         require_int("max_steps", self.max_steps, 1)
         require_int("seed", self.seed, 0)
         require_int("fault_steps", self.fault_steps, 1)
-        if not (is_number(self.approach_time) and 0 < self.approach_time <= 10_000):
-            raise ValueError(f"approach_time must be a number in (0, 10000] (s), got "
-                             f"{self.approach_time!r}")
-        if self.approach_time != 150.0 and self.scenario != "random-crossing":
-            raise ValueError(f"approach_time times the crossings of the 'random-crossing' "
-                             f"scene only; scenario {self.scenario!r} needs the default 150 s, "
-                             f"got {self.approach_time!r}")
+        if not (is_number(self.approach_time) and 0 < self.approach_time <= 10_000 and (
+                self.approach_time == 150.0 or self.scenario == "random-crossing")):
+            raise ValueError(f"approach_time must be a number in (0, 10000] s, and 150 unless "
+                             f"scenario is 'random-crossing', got {self.approach_time!r} for "
+                             f"{self.scenario!r}")
 
 
 @dataclass(frozen=True)

@@ -91,7 +91,8 @@ def test_the_moving_study_flies_each_crossing_with_every_prediction_and_the_desi
     from paper_repro.evidence.golden import layer_of
 
     assert all(s.config.solver.line_search for s in study.specs)
-    assert {layer_of(s.config) for s in study.specs} == {"riccati-ipm"}
+    assert {layer_of(s.config) for s in paper} == {"riccati-ipm"}
+    assert {layer_of(s.config) for s in design} == {"riccati-ipm+sweep"}
     # One controller per worker and configuration: the prediction and the barrier are part of
     # the problem (the scan carries velocities), the scene and the seed are not.
     keys = {(lab["barrier"], lab["prediction"]): S.controller_key(s.config)
