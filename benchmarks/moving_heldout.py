@@ -24,7 +24,7 @@ import pandas as pd
 
 from paper_repro import Config, paths
 from paper_repro import studies as S
-from paper_repro.analysis import statistics
+from paper_repro.analysis import metrics, statistics
 from paper_repro.cli.args import seed_list
 from paper_repro.evidence.golden import layer_of, stamp
 from paper_repro.studies.catalogue import MOVING_DESIGN
@@ -59,7 +59,7 @@ def summary(table: pd.DataFrame) -> pd.DataFrame:
                      "collision_low": col["low"], "collision_high": col["high"],
                      "completed": int(done["k"]), "min_clearance_m": g["min_clearance_m"].min(),
                      "failed_solves": int(g["failed_solves"].sum()),
-                     "encounters": int((g["min_clearance_m"] < Config().sensor.range).sum())})
+                     "encounters": metrics.encounters(g["min_clearance_m"], Config().sensor.range)})
     return pd.DataFrame(rows)
 
 

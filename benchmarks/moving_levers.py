@@ -21,7 +21,7 @@ import pandas as pd
 
 from paper_repro import Config, paths
 from paper_repro import studies as S
-from paper_repro.analysis import statistics
+from paper_repro.analysis import metrics, statistics
 from paper_repro.cli.args import seed_list
 from paper_repro.evidence.golden import layer_of, stamp
 from paper_repro.studies.catalogue import PASSAGE_STEPS, Study, passage_spec
@@ -111,7 +111,7 @@ def summary(table: pd.DataFrame) -> pd.DataFrame:
                      # runs in which a region came into the LiDAR's range at all: a lever that
                      # changes the pace can pass before the regions arrive (the crossings are
                      # timed for the printed pace), which is no avoidance
-                     "encounters": int((g["min_clearance_m"] < Config().sensor.range).sum()),
+                     "encounters": metrics.encounters(g["min_clearance_m"], Config().sensor.range),
                      "collisions": int(col["k"]),
                      "collision_low": col["low"], "collision_high": col["high"],
                      "completed": int(done["k"]), "stalled": int(g["stalled"].sum()),

@@ -270,3 +270,11 @@ def test_a_straight_approach_breaks_the_cbf_condition_below_its_analytic_distanc
     expected = np.sum(in_view & (recorded[:-1] < root)) / np.sum(in_view)
     assert 1.6 < root < 1.65
     assert cbf_condition_share(_dot_run(path)) == pytest.approx(expected, abs=1e-12)
+
+
+def test_encounters_count_the_runs_that_came_within_the_sensor_range():
+    """Strictly within r_s: a run at exactly the range, or without a clearance, met nothing."""
+    from paper_repro.analysis.metrics import encounters
+
+    assert encounters([0.1, 2.99, 3.0, 7.5, np.nan], 3.0) == 2
+    assert encounters([], 3.0) == 0

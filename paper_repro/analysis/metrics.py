@@ -138,6 +138,12 @@ COLLISION_CLEARANCE = 0.35
 (h = 0.332 m, Table I): a rotor would touch a cloud point."""
 
 
+def encounters(min_clearance, sensor_range: float) -> int:
+    """How many runs met a region: their minimum clearance (m, one per run) fell within the
+    LiDAR's ``sensor_range`` (m). A clear run that never met a region is no avoidance."""
+    return int((np.asarray(min_clearance, float) < sensor_range).sum())
+
+
 def region_distances(result) -> np.ndarray:
     """(K, n_regions) m: the true Euclidean distance from the output y_k (the position, the
     first p states of either vehicle) to each region where it is at t_k, over all its points
