@@ -162,11 +162,17 @@ def test_shape_membership():
 
 # --- LiDAR ----------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("factory", [paper_scene, encounter_scene])
+def _random_scene():
+    return make_scene("random", 3)
+
+
+@pytest.mark.parametrize("factory", [paper_scene, encounter_scene, _random_scene])
 @pytest.mark.parametrize("r_s", [0.7, 3.0])
 def test_lidar_matches_brute_force(factory, r_s, rng):
     """Per region, the scan returns exactly the points within r_s of the UAV (brute force),
-    in their cloud order, at random positions in the workspace and near the clouds."""
+    in their cloud order, at random positions in the workspace and near the clouds (a random
+    scene: several regions, in view at once or not, each cut from one query's sorted
+    indices)."""
     scene = factory()
     lidar = Lidar(scene.clouds, r_s)
     everything = scene.all_points

@@ -63,6 +63,8 @@ class Lidar:
             [np.full(len(c), i) for i, c in enumerate(self.clouds)] or [np.zeros(0, int)])
         points = np.concatenate(self.clouds) if self.clouds else np.zeros((0, self.dim))
         self._points = points
+        # one past each region's last row of `points` (the clouds are stacked in region order)
+        self._ends = np.cumsum([len(c) for c in self.clouds], dtype=np.intp)
         self._tree = cKDTree(points) if len(points) else None
         if self.motions is not None:
             self._first = np.cumsum([0] + [len(c) for c in self.clouds])[:-1]
@@ -118,19 +120,23 @@ class Lidar:
             return [np.zeros((0, self.dim)) for _ in self.clouds]
         if self.motions is not None:
             return self._moving_scan(p, t)
-        idx = np.sort(np.asarray(self._tree.query_ball_point(p, self.range), dtype=int))
+        idx = np.asarray(self._tree.query_ball_point(p, self.range, return_sorted=True),
+                         dtype=np.intp)
         if not self.noise.perfect:
             return self._noisy_scan(p, idx)
-        labels = self._labels[idx]
-        return [self._points[idx[labels == i]] for i in range(len(self.clouds))]
+        # The clouds are stacked in region order, so the sorted indices fall into one run per
+        # region: cut the points at the regions' ends rather than mask them region by region.
+        points = self._points[idx]
+        cuts = np.searchsorted(idx, self._ends).tolist()
+        return [points[a:b] for a, b in zip([0, *cuts[:-1]], cuts)]
 
     def _moving_scan(self, p: np.ndarray, t: float) -> list[np.ndarray]:
         """:meth:`scan` with motions: region i's tree is queried at p − c_i(t) and its points
         are shifted by + c_i(t)."""
         shifts = self.offsets(t)
         local = [np.zeros(0, int) if tree is None else
-                 np.sort(np.asarray(tree.query_ball_point(p - shifts[i], self.range),
-                                    dtype=int))
+                 np.asarray(tree.query_ball_point(p - shifts[i], self.range,
+                                                  return_sorted=True), dtype=np.intp)
                  for i, tree in enumerate(self._trees)]
         if not self.noise.perfect:
             idx = np.concatenate([self._first[i] + li for i, li in enumerate(local)])
