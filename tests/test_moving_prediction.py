@@ -329,7 +329,10 @@ def test_the_design_barrier_keeps_clear_where_the_papers_barrier_collides(predic
     to √(2·d_min) = 1.41 m, and the escape starts too late); with the study's design for
     regions predicted to move (``catalogue.moving_design_controller``, smoothed metric: a 3 m²
     margin, the region's path over the next second, a 0.525 s prediction) the UAV leaves the
-    region's path early and keeps more than a metre."""
+    region's path early and keeps more than a metre, every QP solved. (Pressed against the
+    region, the paper's barrier can meet QPs that neither the interior point nor HPIPM solves:
+    with Kalman, four in a row, on which the interior point's former start failed as well; the
+    loop records them and flies on.)"""
     from paper_repro.studies.catalogue import moving_design_controller
 
     scene, x0 = _window_of_crossing_5()
@@ -338,6 +341,6 @@ def test_the_design_barrier_keeps_clear_where_the_papers_barrier_collides(predic
     clearance = {}
     for name, cfg in (("paper", base), ("design", moving_design_controller(base, "smooth"))):
         result = simulate(cfg, max_steps=800, scene=scene, initial_state=x0, progress=False)
-        assert result.failures == 0
+        assert result.failures == 0 or name == "paper"
         clearance[name] = result.clearance.min()
     assert clearance["paper"] < COLLISION_CLEARANCE < 1.0 < clearance["design"]

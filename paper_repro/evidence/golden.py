@@ -75,9 +75,14 @@ class GoldenFlight:
     barrier : ``(field, value)`` pairs of :class:`~paper_repro.config.BarrierParams` that
         differ from the paper's (the moving design's swept path and margin).
     prediction_ts : the prediction step (``NMPCParams.prediction_ts``; ``None``: T_s).
+    approach_time : the pace of a ``random-crossing`` (``SimulationParams.approach_time``;
+        ``None``: the printed set-up's).
     layer : ``""`` (the core), ``"map"`` (the noisy LiDAR read through the local map),
         ``"guide"`` (the same with the guide), ``"riccati-ipm"`` (the interior-point QP
-        chain) or ``"sweep"`` (the swept path of a moving region) (:data:`LAYERS`).
+        chain) or ``"sweep"`` (the swept path of a moving region) (:data:`LAYERS`), or
+        names of them joined by ``"+"`` for a flight that needs each (the moving design
+        sweeps on the interior-point chain): its file enters the hash of a layer that
+        covers them all.
     """
 
     name: str
@@ -95,6 +100,7 @@ class GoldenFlight:
     vehicle: str = "quadrotor"
     barrier: tuple = ()
     prediction_ts: float | None = None
+    approach_time: float | None = None
     layer: str = ""
 
     def config(self):
@@ -109,9 +115,10 @@ class GoldenFlight:
             cfg = Config()
             cfg = dataclasses.replace(
                 cfg, distance=dataclasses.replace(cfg.distance, metric=self.metric),
-                simulation=dataclasses.replace(cfg.simulation, scenario=self.scenario,
-                                               kind=self.kind, seed=self.seed,
-                                               max_steps=self.steps),
+                simulation=dataclasses.replace(
+                    cfg.simulation, scenario=self.scenario, kind=self.kind, seed=self.seed,
+                    max_steps=self.steps, **({} if self.approach_time is None
+                                             else {"approach_time": self.approach_time})),
                 nmpc=dataclasses.replace(cfg.nmpc, prediction=self.prediction,
                                          prediction_ts=self.prediction_ts),
                 barrier=dataclasses.replace(cfg.barrier, **dict(self.barrier)))
@@ -162,12 +169,18 @@ GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
                  "point where it runs out)", scenario="crossing", steps=900,
                  prediction="oracle", line_search=True, qp_solver="riccati-ipm",
                  layer="riccati-ipm"),
-    GoldenFlight("crossing-smooth-design", "the crossing with the moving study's design "
-                 "(smoothed metric): the region's swept path and its wider margin, the "
-                 "0.525 s prediction, the damped RTI on the interior-point chain",
-                 scenario="crossing", steps=900, prediction="oracle", line_search=True,
-                 qp_solver="riccati-ipm", prediction_ts=0.015,
-                 barrier=(("moving_d_min", 3.0), ("sweep_time", 1.0)), layer="sweep"),
+    GoldenFlight("crossing-smooth-sweep", "the crossing with the region's swept path (1 s) "
+                 "on the default QP chain, as the levers that sweep fly it", scenario="crossing",
+                 steps=900, prediction="oracle", line_search=True,
+                 barrier=(("sweep_time", 1.0),), layer="sweep"),
+    GoldenFlight("crossing-smooth-design", "a random crossing timed to the moving study's "
+                 "design, flown with it (smoothed metric): the regions' swept paths and wider "
+                 "margin in view for most of its 15 s, the 0.525 s prediction, the damped RTI "
+                 "on the interior-point chain (a third of its QPs)", scenario="random-crossing",
+                 kind="passage", seed=1, approach_time=27.0, steps=1500, prediction="oracle",
+                 line_search=True, qp_solver="riccati-ipm", prediction_ts=0.015,
+                 barrier=(("moving_d_min", 3.0), ("sweep_time", 1.0)),
+                 layer="riccati-ipm+sweep"),
 )
 
 LAYERS = ("", "map", "guide", "riccati-ipm", "sweep")
@@ -175,16 +188,18 @@ LAYERS = ("", "map", "guide", "riccati-ipm", "sweep")
 ``"map"`` layer the local map (``sensor.map_voxel`` > 0), the ``"guide"`` layer the guide on
 the map (``guide.planner`` other than ``"none"``), and the ``"riccati-ipm"`` layer the
 interior-point QP chain (``solver.qp_solver``), which only some runs use, and the
-``"sweep"`` layer the swept path of a region predicted to move (``barrier.sweep_time`` > 0),
-flown on that chain by the moving study's design. A layer's hash
-covers its flights and those of the layers it is built on (:data:`LAYER_BASES`). A run's
+``"sweep"`` layer the swept path of a region predicted to move (``barrier.sweep_time`` > 0) on
+the default chain; the moving study's design, which sweeps on the interior-point chain, has a
+flight of both (``"riccati-ipm+sweep"``). A layer's hash covers its flights and those of the
+layers it is built on (:data:`LAYER_BASES`), and a combined layer's those of its parts and the
+flights of the combination. A run's
 cache key and an evidence set's stamp hold the golden hash of the layers they use
 (:func:`golden_hash`, :func:`layer_of`): a change to the map retires the cached runs and
 stamps that use the map (guided or not), a change to the guide those that use the guide, a
 change to the interior point those that use it, and the others stay as they are."""
 
 LAYER_BASES = {"": (), "map": ("",), "guide": ("", "map"), "riccati-ipm": ("",),
-               "sweep": ("", "riccati-ipm")}
+               "sweep": ("",)}
 """Layer → the layers it is built on."""
 
 
@@ -316,9 +331,10 @@ def recomputed_golden_hash(layer: str = "") -> str:
 
 
 def _layer_files(files: dict, layer: str) -> dict:
-    """The files of the flights of the layers ``layer`` covers (:func:`covered_layers`)."""
+    """The files of the flights of the layers ``layer`` covers (:func:`covered_layers`): a
+    flight of several layers when it covers each."""
     covered = covered_layers(layer)
-    wanted = {f.name for f in GOLDEN_FLIGHTS if f.layer in covered}
+    wanted = {f.name for f in GOLDEN_FLIGHTS if covered_layers(f.layer) <= covered}
     return {name: digest for name, digest in files.items() if name in wanted}
 
 

@@ -920,12 +920,17 @@ INSTANCE int schur_fixed(const problem *pr, double *pi, double *pi1, double *e,
 #define schur schur_any
 #endif
 
-/* Constants of the interior point (see stage_qp_ipm). The start's were chosen on the swept
- * pillar's 630 hardest QPs (benchmarks/swept_pillar.py): 12 iterations in the median, 21 at
- * p99, where HPIPM's cold start took 13-45 and a start at z = 0 about 19. */
-#define IPM_CURVATURE 100.0  /* the start: the QP without bounds, this curvature on them; */
+/* Constants of the interior point (see stage_qp_ipm). The start scales with the cost (its
+ * curvature with max|H|, its multipliers with max|q|): the cost scaled by c gives the same
+ * start z and multipliers c times larger, as the moving design's are 20 times the paper
+ * barrier's. Chosen on the QPs that went to the interior point on the swept pillar
+ * (benchmarks/swept_pillar.py), 213 of the paper's barrier and 503 of the moving design: in
+ * iterations, median / p99 / max, 12 / 14 / 17 and 23 / 44 / 50 from a fixed start
+ * (multipliers 1000 / slack, curvature 100), 12 / 14 / 17 and 13 / 19 / 21 from this one.
+ * HPIPM's cold start took 13-45, a start at z = 0 about 19. */
+#define IPM_CURVATURE 1e-3   /* the start: the QP without bounds, IPM_CURVATURE max|H| on them; */
 #define IPM_SLACK 1.0        /* each slack at least this, */
-#define IPM_MU0 1000.0       /* each multiplier IPM_MU0 / slack */
+#define IPM_MU0 0.01         /* each multiplier IPM_MU0 max|q| / slack */
 #define IPM_TAU 0.995        /* the fraction of the step to the boundary taken */
 #define IPM_ACTIVE 1e4       /* a bound whose lam / s exceeds this is guessed active */
 #define MIN(a, b) ((a) < (b) ? (a) : (b))
@@ -993,19 +998,25 @@ int stage_qp_ipm(int n, const int *nx, const int *nu, const double *h, const dou
     }
 #define HAS_L(i) (hl[i] & 1)
 #define HAS_U(i) (hl[i] & 2)
-    /* Start: z minimises the QP without its bounds, with curvature IPM_CURVATURE on the
-     * bounded entries (the dynamics and C x_N = d met); each slack at least IPM_SLACK,
-     * each multiplier IPM_MU0 / slack. */
-    for (int i = 0; i < nw; ++i) dg[i] = hl[i] ? IPM_CURVATURE : 0.0;
+    /* Start: z minimises the QP without its bounds, with curvature IPM_CURVATURE max|H| on
+     * the bounded entries (the dynamics and C x_N = d met); each slack at least IPM_SLACK,
+     * each multiplier IPM_MU0 max|q| / slack. (max|·| at least 1.) */
+    double hmax = 0.0;
+    for (size_t i = 0; i < oh[n] + (size_t)nx[n] * nx[n]; ++i) hmax = MAX(hmax, fabs(h[i]));
+    hmax = IPM_CURVATURE * MAX(hmax, 1.0);
+    for (int i = 0; i < nw; ++i) dg[i] = hl[i] ? hmax : 0.0;
     int info = factorise(&pr, dg, 0.0, n);
     if (info) return info;
     if (nc > 0 && schur(&pr, pi, pi1, ek, &tm)) return 3;
     solve_terminal(&pr, &tm, q, z);
+    double mu0 = 0.0;
+    for (int i = 0; i < nw; ++i) mu0 = MAX(mu0, fabs(q[i]));
+    mu0 = IPM_MU0 * MAX(mu0, 1.0);
     for (int i = 0; i < nw; ++i) {
         sl[i] = HAS_L(i) ? MAX(z[i] - lo[i], IPM_SLACK) : 1.0;
         su[i] = HAS_U(i) ? MAX(up[i] - z[i], IPM_SLACK) : 1.0;
-        ll[i] = HAS_L(i) ? IPM_MU0 / sl[i] : 0.0;
-        lu[i] = HAS_U(i) ? IPM_MU0 / su[i] : 0.0;
+        ll[i] = HAS_L(i) ? mu0 / sl[i] : 0.0;
+        lu[i] = HAS_U(i) ? mu0 / su[i] : 0.0;
     }
     /* The best iterate (smallest max(mu, residual)) is returned: once lam / s spans more
      * than double precision resolves, the solves lose accuracy and the residuals grow. */
