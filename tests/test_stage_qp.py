@@ -292,7 +292,8 @@ def test_the_interior_point_from_nothing_matches_a_dense_active_set_solver(nx, n
 def test_the_interior_points_start_scales_with_the_gradient(seed, scale):
     """The cost scaled by c (H and q: the same minimiser, multipliers c times larger, as the
     moving design's are 20 times the paper barrier's): the same solution, in about as many
-    iterations, since the start's multipliers scale with max|q|. (From a fixed start the
+    iterations, since the start scales with the cost (its curvature with max|H|, its
+    multipliers with max|q|). (From a fixed start the
     moving design's QPs took 23 iterations in the median and up to 50, against 12.)"""
     nx, nu, nc = DIMS[1]
     data, (big_h, a_eq, rhs) = _random_qp(np.random.default_rng(seed), nx, nu, nc)

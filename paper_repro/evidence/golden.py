@@ -9,7 +9,8 @@ makes. Two things enforce it.
   ``"map"`` layer (:data:`LAYERS`), the noisy LiDAR through the local map; in the
   ``"guide"`` layer, the same with the guide; in the ``"riccati-ipm"`` layer, the crossing
   with the interior-point QP chain the moving-obstacle study flies; in the ``"sweep"``
-  layer, the crossing with that study's design, the region's swept path included). Their
+  layer, the crossing with the region's swept path on the default chain; in both, a crossing
+  flown with that study's design). Their
   states and inputs are committed in ``figures/golden/<name>.npy`` and
   ``figures/golden/golden.json`` holds the SHA-256 of each file and of the whole set, the
   *golden hash*. ``tests/test_evidence.py``

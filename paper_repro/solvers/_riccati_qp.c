@@ -927,7 +927,7 @@ INSTANCE int schur_fixed(const problem *pr, double *pi, double *pi1, double *e,
  * (benchmarks/swept_pillar.py), 213 of the paper's barrier and 503 of the moving design: in
  * iterations, median / p99 / max, 12 / 14 / 17 and 23 / 44 / 50 from a fixed start
  * (multipliers 1000 / slack, curvature 100), 12 / 14 / 17 and 13 / 19 / 21 from this one.
- * HPIPM's cold start took 13-45, a start at z = 0 about 19. */
+ * (On the paper barrier's QPs HPIPM's cold start took 13-45, a start at z = 0 about 19.) */
 #define IPM_CURVATURE 1e-3   /* the start: the QP without bounds, IPM_CURVATURE max|H| on them; */
 #define IPM_SLACK 1.0        /* each slack at least this, */
 #define IPM_MU0 0.01         /* each multiplier IPM_MU0 max|q| / slack */
