@@ -177,8 +177,8 @@ class BarrierParams:
                            ("equilibrium_lookahead", 10.0)):
             value = getattr(self, name)
             if not (is_number(value) and math.isfinite(value) and 0 <= value <= high):
-                raise ValueError(f"{name} must be a finite number in [0, {high:g}] (s; 0 is "
-                                 f"off), got {value!r}")
+                raise ValueError(f"{name} must be a finite number in [0, {high:g}"
+                                 f"{']' if high < math.inf else ')'} (s; 0 is off), got {value!r}")
         if not (is_number(self.moving_d_min) and math.isfinite(self.moving_d_min)
                 and (self.moving_d_min == 0 or self.moving_d_min >= self.d_min)):
             raise ValueError(f"moving_d_min must be 0 (off) or a finite number >= d_min = "

@@ -225,7 +225,8 @@ def test_the_moving_levers_are_checked_and_need_a_prediction():
 def test_a_reaction_margin_needs_a_prediction_that_hands_velocities():
     with pytest.raises(ValueError, match=r"^barrier.reaction_time needs nmpc.prediction"):
         Config(barrier=BarrierParams(reaction_time=1.0))
-    with pytest.raises(ValueError, match=r"^reaction_time must be a finite number in \[0, inf\]"):
+    with pytest.raises(ValueError,
+                       match=r"^reaction_time must be a finite number in \[0, inf\) \(s"):
         BarrierParams(reaction_time=-0.5)
     cfg = Config(barrier=BarrierParams(reaction_time=1.0), nmpc=NMPCParams(prediction="kalman"))
     assert OCP(cfg).scan.reaction_time == 1.0

@@ -67,7 +67,7 @@ class Lidar:
         self._ends = np.cumsum([len(c) for c in self.clouds], dtype=np.intp)
         self._tree = cKDTree(points) if len(points) else None
         if self.motions is not None:
-            self._first = np.cumsum([0] + [len(c) for c in self.clouds])[:-1]
+            self._first = self._ends - [len(c) for c in self.clouds]  # each region's first row
             self._trees = [cKDTree(c) if len(c) else None for c in self.clouds]
         self.reset()
 
