@@ -27,6 +27,7 @@ Import graph: ``config → vehicle → model → ocp → {nmpc, rti} → control
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
@@ -81,6 +82,8 @@ class OCP:
         self._equilibrium_fn = None  # numeric a -> (x_a, u_a), built on first use
         # never relaxed (see state_box); an index array, cheaper to index with than a list
         self._position_entries = np.array(model.position, dtype=np.intp)
+        self._relaxable = np.ones(model.nx, dtype=bool)  # the entries state_box may relax
+        self._relaxable[self._position_entries] = False
         self.state_bounds = (np.asarray(model.state_lower, float),
                              np.asarray(model.state_upper, float))
         self.input_bounds = (np.asarray(model.input_lower, float),
@@ -181,10 +184,11 @@ class OCP:
         """
         lower, upper = self.state_bounds
         x0 = np.asarray(x0, float)
-        below, above = x0 < lower, x0 > upper
-        below[self._position_entries] = above[self._position_entries] = False
-        if not (below.any() or above.any()):
+        outside = (x0 < lower) | (x0 > upper)
+        outside &= self._relaxable
+        if not outside.any():  # (nearly every step: one test)
             return lower, upper
+        below, above = (x0 < lower) & self._relaxable, (x0 > upper) & self._relaxable
         return (np.where(below, 2.0 * x0 - lower, lower),
                 np.where(above, 2.0 * x0 - upper, upper))
 
@@ -216,20 +220,26 @@ class OCP:
         x_a, u_a = self.equilibrium(a)
         return self.model.dynamics(x_a, u_a)
 
-    @property
+    @functools.cached_property
     def equilibrium_box(self) -> tuple[np.ndarray, np.ndarray]:
-        """(lower, upper) of a: the parametrisation's box, or λ(𝒳 × 𝒰) on (x_a, u_a)."""
+        """(lower, upper) of a, (n_a,) each: the parametrisation's box, or λ(𝒳 × 𝒰) on
+        (x_a, u_a). Found once (a parametrisation's entries by CasADi, about 0.1 ms, which a
+        solve whose measured state leaves 𝒳 would otherwise pay again); read-only."""
         e = self.equilibria
         xal, xau, ual, uau = self.equilibrium_bounds
         if e is None:
-            return np.concatenate([xal, ual]), np.concatenate([xau, uau])
-        if e.lower is not None:
-            return np.asarray(e.lower, float), np.asarray(e.upper, float)
-        entries = _entries_of(e.state)
-        if entries is None:
-            raise ValueError(f"equilibria of the {self.model.name} model need lower and upper "
-                             "bounds on a: its a_k are not entries of x_a")
-        return xal[entries], xau[entries]
+            box = np.concatenate([xal, ual]), np.concatenate([xau, uau])
+        elif e.lower is not None:
+            box = np.array(e.lower, float), np.array(e.upper, float)
+        else:
+            entries = _entries_of(e.state)
+            if entries is None:
+                raise ValueError(f"equilibria of the {self.model.name} model need lower and "
+                                 "upper bounds on a: its a_k are not entries of x_a")
+            box = xal[entries], xau[entries]
+        for bound in box:
+            bound.flags.writeable = False
+        return box
 
     def parameters_of(self, x_a, u_a) -> np.ndarray:
         """a of a numeric artificial equilibrium (x_a, u_a): (n_a,) array."""

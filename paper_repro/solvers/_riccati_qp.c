@@ -1001,8 +1001,16 @@ int stage_qp_ipm(int n, const int *nx, const int *nu, const double *h, const dou
     /* Start: z minimises the QP without its bounds, with curvature IPM_CURVATURE max|H| on
      * the bounded entries (the dynamics and C x_N = d met); each slack at least IPM_SLACK,
      * each multiplier IPM_MU0 max|q| / slack. (max|·| at least 1.) */
-    double hmax = 0.0;
-    for (size_t i = 0; i < oh[n] + (size_t)nx[n] * nx[n]; ++i) hmax = MAX(hmax, fabs(h[i]));
+    /* max|H| over every block (about 17,000 entries at N = 35): four running maxima, which
+     * the compiler vectorises, where one is a chain of dependent comparisons; the same
+     * number (a maximum is exact in any order) */
+    double hm[4] = {0.0, 0.0, 0.0, 0.0};
+    const size_t nh = oh[n] + (size_t)nx[n] * nx[n];
+    size_t ih = 0;
+    for (; ih + 4 <= nh; ih += 4)
+        for (int k = 0; k < 4; ++k) hm[k] = MAX(hm[k], fabs(h[ih + k]));
+    for (; ih < nh; ++ih) hm[0] = MAX(hm[0], fabs(h[ih]));
+    double hmax = MAX(MAX(hm[0], hm[1]), MAX(hm[2], hm[3]));
     hmax = IPM_CURVATURE * MAX(hmax, 1.0);
     for (int i = 0; i < nw; ++i) dg[i] = hl[i] ? hmax : 0.0;
     int info = factorise(&pr, dg, 0.0, n);

@@ -285,8 +285,11 @@ class QPLayout:
             diagonal.append(k + np.arange(size) * (size + 1))
             k += size * size
         self.hessian_diagonal = np.concatenate(diagonal)  # positions of H's diagonal in h
-        self._uniform_runs = [(offsets[np.array(list(g))], size) for size, g in
-                              itertools.groupby(range(n + 1), key=lambda j: self.sizes[j])]
+        # runs of stages with blocks of one size: (the entries of w of each stage, count ×
+        # size; the size)
+        self._uniform_runs = [(offsets[np.array(list(g))][:, None] + np.arange(size), size)
+                              for size, g in itertools.groupby(range(n + 1),
+                                                               key=lambda j: self.sizes[j])]
         index = -np.ones((nw, nw), dtype=int)
         k = 0
         for j, s in enumerate(self.sizes):
@@ -345,10 +348,10 @@ class QPLayout:
     def curvature(self, h, dw) -> float:
         """Δwᵀ H Δw from the linearisation's Hessian blocks ``h``."""
         total, k = 0.0, 0
-        for (o, size) in self._uniform_runs:  # runs of equal block sizes, one einsum each
-            count = len(o)
+        for (entries, size) in self._uniform_runs:  # runs of equal block sizes, one einsum each
+            count = len(entries)
             blocks = h[k:k + count * size * size].reshape(count, size, size)
-            parts = dw[o[:, None] + np.arange(size)]
+            parts = dw[entries]
             total += float(np.einsum("bi,bij,bj->", parts, blocks, parts))
             k += count * size * size
         return total

@@ -116,7 +116,14 @@ class RealTimeNMPC:
         self.qp = QPChain(self.layout, self.qp_solver)
         self.line_search = MeritLineSearch(self.layout, max_trials=4 if line_search else 0)
         self._lbw, self._ubw = self.layout.bounds(ocp)
-        self._position = np.array(ocp.model.position, dtype=np.intp)
+        position = np.array(ocp.model.position, dtype=np.intp)
+        self._has_position = len(position) > 0
+        # the position entries of x: a slice where they are consecutive (the quadrotor's
+        # 0:3), which indexes without a gather
+        self._position = (slice(int(position[0]), int(position[-1]) + 1)
+                          if len(position) and np.array_equal(
+                              position, np.arange(position[0], position[-1] + 1))
+                          else position)
         # Buffers of every solve, whose contents never outlive it: the iterate w (n_w,) (its
         # carried β stay 0) and the step's bounds lb − w, ub − w (n_w,).
         nw = self.layout.nw
@@ -185,9 +192,11 @@ class RealTimeNMPC:
                 break
             alpha, merit = self.line_search(dw, h, q, gap, eq, float(cost[0]), values)
             dx, du, da = layout.gather(dw)
-            X[1:] += alpha * dx
-            U += alpha * du
-            a += alpha * da
+            if alpha != 1.0:  # (1.0·Δ is Δ, bit for bit: the full step skips the products)
+                dx, du, da = alpha * dx, alpha * du, alpha * da
+            X[1:] += dx
+            U += du
+            a += da
             # Converged: a full, undamped step below the tolerance (a shortened or damped
             # step is small without being near the solution).
             if (alpha == 1.0 and not damped
@@ -223,7 +232,7 @@ class RealTimeNMPC:
         (N, n_u) and a (n_a,). The previous plan moved to x0
         (:meth:`NMPCSolution.reanchored`, the same numbers without building it), shifted in
         time for a vehicle without position states, or rest at x0 without a previous plan."""
-        if previous is None or not len(self._position):
+        if previous is None or not self._has_position:
             guess = self.hover_guess(x0) if previous is None else previous.shifted()
             X = np.array(guess.x, dtype=float)
             X[0] = x0

@@ -113,7 +113,7 @@ class Lidar:
           scene without any point has no region to give them to, and they are dropped.
         """
         p = np.asarray(position, float)
-        if p.shape != (self.dim,) or not np.all(np.isfinite(p)):
+        if p.shape != (self.dim,) or not np.isfinite(p).all():
             raise ValueError(f"position must be a finite ({self.dim},) array, got {p!r}")
         require_time(t)
         if self._tree is None:
