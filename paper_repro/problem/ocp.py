@@ -184,11 +184,9 @@ class OCP:
         """
         lower, upper = self.state_bounds
         x0 = np.asarray(x0, float)
-        outside = (x0 < lower) | (x0 > upper)
-        outside &= self._relaxable
-        if not outside.any():  # (nearly every step: one test)
-            return lower, upper
         below, above = (x0 < lower) & self._relaxable, (x0 > upper) & self._relaxable
+        if not (below | above).any():
+            return lower, upper
         return (np.where(below, 2.0 * x0 - lower, lower),
                 np.where(above, 2.0 * x0 - upper, upper))
 
