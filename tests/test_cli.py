@@ -70,8 +70,8 @@ def test_the_help_lists_every_command():
                           capture_output=True, text=True, check=True).stdout
     for name in COMMANDS:
         assert name in text
-    assert set(COMMANDS) == {"run", "scene", "reproduce", "study", "tune", "golden", "cache",
-                             "readme", "book"}
+    assert set(COMMANDS) == {"run", "scene", "reproduce", "study", "tune", "golden",
+                             "regenerate", "cache", "readme", "book"}
 
 
 def test_cache_rekey_reports_each_folder_and_refuses_what_it_cannot_do(tmp_path, capsys):

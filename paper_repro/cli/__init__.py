@@ -10,6 +10,7 @@
 ``study``          fly a study of the catalogue, write its table and figures
 ``tune``           tune the avoidance parameters with Optuna
 ``golden``         fly the golden flights and compare or write them
+``regenerate``     make the stale evidence sets again, one job per core
 ``cache``          re-key the run cache after a layout change that moves no flight
 ``readme``         write or check the tables of the README and docs/
 ``book``           build the HTML book from docs/ and the executed notebooks

@@ -8,6 +8,7 @@
     python -m paper_repro study monte_carlo [--quick] [--workers N] [--scheduler ADDRESS]
     python -m paper_repro tune [--trials N] [--quick] [--workers N] [--storage URL]
     python -m paper_repro golden [--write]
+    python -m paper_repro regenerate [SET ...] [--jobs N] [--dry-run]
     python -m paper_repro cache --rekey
     python -m paper_repro readme [--check]
     python -m paper_repro book [--quick]
@@ -18,11 +19,22 @@ from __future__ import annotations
 import argparse
 import sys
 
-from paper_repro.cli import book, cache, golden, readme, reproduce, run, scene, study, tune
+from paper_repro.cli import (
+    book,
+    cache,
+    golden,
+    readme,
+    regenerate,
+    reproduce,
+    run,
+    scene,
+    study,
+    tune,
+)
 
 COMMANDS = {"run": run, "scene": scene, "reproduce": reproduce,
-            "study": study, "tune": tune, "golden": golden, "cache": cache,
-            "readme": readme, "book": book}
+            "study": study, "tune": tune, "golden": golden, "regenerate": regenerate,
+            "cache": cache, "readme": readme, "book": book}
 """Every command: a module with ``HELP``, ``add_arguments(parser)`` and
 ``main(args)``; ``main`` checks every option before anything is built or flown."""
 

@@ -2,7 +2,9 @@
 of the README and the book formatted from the committed tables.
 
 =================  ==================================================================
+``sets``           every evidence set and the command that makes it
 ``golden``         the golden flights and the stamps every evidence set carries
+``regenerate``     the stale sets made again, one job per core, the speed tables last
 ``readme``         the tables of the README and the book, from the committed ones
 ``beyond``         those of the studies beyond the paper (map, guide, moving regions, tuning)
 ``formatting``     how those tables write a rate, a share, a ratio, a time
@@ -11,7 +13,6 @@ of the README and the book formatted from the committed tables.
 
 from paper_repro.evidence.formatting import markdown_table
 from paper_repro.evidence.golden import (
-    EVIDENCE_SETS,
     GOLDEN_FLIGHTS,
     INPUT_TOLERANCE,
     POSITION_TOLERANCE,
@@ -36,6 +37,7 @@ from paper_repro.evidence.readme import (
     readme_path,
     render,
 )
+from paper_repro.evidence.sets import EVIDENCE_SETS, SETS, EvidenceSet
 
 __all__ = [
     "BLOCKS",
@@ -43,6 +45,7 @@ __all__ = [
     "check_golden",
     "command_line",
     "EVIDENCE_SETS",
+    "EvidenceSet",
     "fly_golden",
     "GOLDEN_FLIGHTS",
     "golden_hash",
@@ -56,6 +59,7 @@ __all__ = [
     "recomputed_golden_hash",
     "render",
     "set_hash",
+    "SETS",
     "sha256_of",
     "stale_evidence",
     "stamp",

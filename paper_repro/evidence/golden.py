@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from paper_repro import paths
+from paper_repro.evidence.sets import EVIDENCE_SETS
 from paper_repro.paths import golden_dir
 
 POSITION_TOLERANCE = 1e-9
@@ -339,27 +340,6 @@ def _layer_files(files: dict, layer: str) -> dict:
     return {name: digest for name, digest in files.items() if name in wanted}
 
 
-EVIDENCE_SETS = (
-    "",  # figures/: the paper figures and summary.csv (reproduce)
-    "presets/paper-timeline",  # reproduce --preset paper-timeline
-    "studies/timeline",  # study timeline
-    "fidelity",  # benchmarks/fidelity.py
-    "ground_robot",  # benchmarks/ground_robot.py
-    "solver_speed/encounter", "solver_speed/crossing",  # benchmarks/solver_speed.py --save
-    "solver_speed/swept_pillar",  # benchmarks/swept_pillar.py --save
-    "throughput", "throughput/profile",  # benchmarks/throughput.py, profile_step.py --save
-    "studies/monte_carlo", "studies/eta_sweep", "studies/sensor_noise",
-    "studies/sensing_window", "studies/moving_obstacles", "studies/moving_obstacles_definition",
-    "studies/avoidability",  # benchmarks/avoidability.py --save
-    "studies/moving_levers",  # benchmarks/moving_levers.py --save
-    "studies/moving_heldout",  # benchmarks/moving_heldout.py --save
-    "studies/moving_speeds",  # benchmarks/moving_speeds.py --save
-    "studies/guidance",  # study guidance
-    "guidance_cost",  # benchmarks/guidance_cost.py --save
-    "guide_filter",  # benchmarks/guide_filter.py --save
-    "tuning",  # tune
-)
-"""Every committed evidence set, as a folder under ``figures/``."""
 
 
 def stamp(folder, made_by: str, layer: str = "") -> Path:

@@ -238,7 +238,7 @@ def regeneration() -> str:
     took on the machine that made it (its ``timings.json``)."""
     import json
 
-    from paper_repro.evidence.golden import EVIDENCE_SETS
+    from paper_repro.evidence.sets import EVIDENCE_SETS
 
     rows = []
     for name in EVIDENCE_SETS:

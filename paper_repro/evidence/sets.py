@@ -1,0 +1,107 @@
+"""Every committed evidence set and how it is made: the one list that the stamps, the staleness
+check (:func:`~paper_repro.evidence.golden.stale_evidence`), the regeneration
+(:mod:`~paper_repro.evidence.regenerate`) and the contributor page's list of commands read.
+
+A set is a folder under ``figures/`` made by one command, run from the repository's root.
+Some read what others made (``after``): the moving speeds read the moving study's flights, for
+example. The speed tables measure the machine (``timed``): they are made last, each alone on
+the machine, so that no other job shares its cores.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+LEVERS = ("none reaction-0.5s reaction-1s reaction-2s h-0.03s d_min-2 d_min-3 "
+          "d_min-2+reaction-0.5s sweep-0.5s sweep-1s moving-d_min-3 moving-d_min-3+sweep-0.5s "
+          "moving-d_min-3+sweep-1s lookahead-3s lookahead-5s moving-d_min-3+lookahead-4s "
+          "moving-d_min-2+lookahead-3s")
+"""The levers the committed screening flies (``benchmarks/moving_levers.py``)."""
+FULL_LEVERS = "none d_min-3 moving-d_min-3 moving-d_min-3+sweep-1s moving-d_min-2+lookahead-3s"
+"""The levers it flies on all 50 crossings and on the static passages."""
+
+
+@dataclass(frozen=True)
+class EvidenceSet:
+    """One evidence set.
+
+    folder : under ``figures/`` (``""``: ``figures/`` itself, the paper mission).
+    command : what makes it, as typed from the repository's root.
+    one_core : options that make the command use a single core (appended by the
+        regeneration, which runs one job per core).
+    after : the sets whose results it reads, or whose runs it shares through the run cache:
+        made before it.
+    timed : its tables are the machine's speed: made last, alone on the machine.
+    fresh : files (under the set's folder) deleted before the command, which would otherwise
+        resume from them (the tuning's trial storage).
+    cores : the cores the command uses (``reproduce`` flies its two missions at once).
+    """
+
+    folder: str
+    command: str
+    one_core: str = ""
+    after: tuple[str, ...] = ()
+    timed: bool = False
+    fresh: tuple[str, ...] = ()
+    cores: int = 1
+
+    @property
+    def label(self) -> str:
+        """``figures/<folder>``, as the stale list and the logs name it."""
+        return f"figures/{self.folder}" if self.folder else "figures"
+
+
+_STUDY = "--workers 1 --no-progress"
+
+SETS = (
+    EvidenceSet("", "python -m paper_repro reproduce", cores=2),
+    EvidenceSet("presets/paper-timeline", "python -m paper_repro reproduce --preset paper-timeline",
+                cores=2),
+    EvidenceSet("studies/timeline", "python -m paper_repro study timeline", _STUDY),
+    EvidenceSet("fidelity", "python benchmarks/fidelity.py", "--jobs 1"),
+    EvidenceSet("ground_robot", "python benchmarks/ground_robot.py"),
+    EvidenceSet("solver_speed/encounter",
+                "python benchmarks/solver_speed.py --scenario encounter --steps 2000 --save",
+                timed=True),
+    EvidenceSet("solver_speed/crossing",
+                "python benchmarks/solver_speed.py --scenario crossing --steps 3000 --solvers rti "
+                "rti-damped rti-hpipm sqp-2 rti-ipm rti-damped-ipm --save", timed=True),
+    EvidenceSet("solver_speed/swept_pillar",
+                "python benchmarks/swept_pillar.py --save --steps 1200", timed=True),
+    EvidenceSet("throughput",
+                "python benchmarks/throughput.py --steps 20000 --scenario paper --save",
+                timed=True, cores=2),
+    EvidenceSet("throughput/profile", "python benchmarks/profile_step.py --save",
+                after=("throughput",), timed=True),
+    EvidenceSet("studies/monte_carlo", "python -m paper_repro study monte_carlo", _STUDY),
+    EvidenceSet("studies/eta_sweep", "python -m paper_repro study eta_sweep", _STUDY),
+    EvidenceSet("studies/sensor_noise", "python -m paper_repro study sensor_noise", _STUDY),
+    EvidenceSet("studies/sensing_window", "python -m paper_repro study sensing_window", _STUDY),
+    EvidenceSet("studies/moving_obstacles", "python -m paper_repro study moving_obstacles", _STUDY),
+    EvidenceSet("studies/moving_obstacles_definition",
+                "python benchmarks/moving_definition_form.py", "--workers 1"),
+    EvidenceSet("studies/avoidability", "python benchmarks/avoidability.py --save",
+                after=("studies/moving_obstacles", "studies/moving_heldout")),
+    EvidenceSet("studies/moving_levers",
+                f"python benchmarks/moving_levers.py --save --seeds 2,3,5,6,12,17,19,25,26 "
+                f"--levers {LEVERS} --full-seeds 0-49 --full-levers {FULL_LEVERS} "
+                f"--static-seeds 0-29", "--workers 1",
+                after=("studies/moving_obstacles", "studies/monte_carlo")),
+    EvidenceSet("studies/moving_heldout",
+                "python benchmarks/moving_heldout.py --save --seeds 50-149", "--workers 1"),
+    EvidenceSet("studies/moving_speeds", "python benchmarks/moving_speeds.py --save",
+                after=("studies/moving_obstacles", "studies/moving_heldout")),
+    EvidenceSet("studies/guidance", "python -m paper_repro study guidance", _STUDY,
+                after=("studies/monte_carlo",)),
+    EvidenceSet("guidance_cost", "python benchmarks/guidance_cost.py --passages 5 --save",
+                timed=True),
+    EvidenceSet("guide_filter",
+                "python benchmarks/guide_filter.py --save --passages 20 --taus 0,1", "--workers 1",
+                after=("studies/guidance",)),
+    EvidenceSet("tuning", "python -m paper_repro tune --trials 40", "--workers 1",
+                after=("studies/monte_carlo",), fresh=("tuning.db",)),
+)
+"""Every committed evidence set, in the order of the contributor page's list."""
+
+EVIDENCE_SETS = tuple(s.folder for s in SETS)
+"""Every committed evidence set, as a folder under ``figures/``."""

@@ -1,0 +1,124 @@
+"""The regeneration (``python -m paper_repro regenerate``): which sets it plans, and the order
+and company in which it runs their commands (on stand-in commands that only record when they
+ran)."""
+
+from __future__ import annotations
+
+import json
+import re
+import shlex
+
+import pytest
+
+from paper_repro import paths
+from paper_repro.cli.parser import main as cli
+from paper_repro.evidence import regenerate as R
+from paper_repro.evidence.sets import EVIDENCE_SETS, SETS, EvidenceSet
+
+
+def test_every_set_reads_only_listed_sets_made_before_it():
+    """The ``after`` lists name listed sets and have no cycle: a set's inputs come before it in
+    a topological order, and a speed table never waits for itself."""
+    folders = set(EVIDENCE_SETS)
+    assert len(folders) == len(SETS)
+    order, left = [], {s.folder: set(s.after) for s in SETS}
+    while left:
+        ready = [f for f, after in left.items() if after <= set(order)]
+        assert ready, f"a cycle among {sorted(left)}"
+        order += ready
+        for f in ready:
+            del left[f]
+    for s in SETS:
+        assert set(s.after) <= folders, s.folder
+
+
+def test_every_command_names_a_script_that_exists():
+    for s in SETS:
+        args = shlex.split(s.command)
+        assert args[0] == "python", s.command
+        if args[1] != "-m":
+            assert (paths.repo_root() / args[1]).is_file(), s.command
+
+
+def _bare(command: str) -> str:
+    """A command without the options that choose how many cores it uses."""
+    command = re.sub(r"\s--(workers|jobs) \d+", "", command)
+    return command.replace(" --no-progress", "").strip()
+
+
+def test_each_committed_set_was_made_by_its_listed_command():
+    """The stamp of every committed set names the command the list gives for it (up to the
+    options that choose the cores), so the contributor page's commands are the ones that made
+    the evidence."""
+    for s in SETS:
+        stamp = paths.figures_dir() / s.folder / "evidence.json"
+        if stamp.is_file():
+            assert _bare(json.loads(stamp.read_text())["made_by"]) == _bare(s.command), s.folder
+
+
+def test_the_plan_adds_every_set_that_reads_a_planned_one():
+    planned = [s.folder for s in R.plan(["studies/moving_heldout"])]
+    assert {"studies/moving_heldout", "studies/moving_speeds",
+            "studies/avoidability"} == set(planned)
+    chained = {s.folder for s in R.plan(["studies/monte_carlo"])}
+    # monte_carlo -> moving_levers, guidance, tuning; guidance -> guide_filter
+    assert {"studies/moving_levers", "studies/guidance", "guide_filter",
+            "tuning"} <= chained
+    assert "studies/moving_speeds" not in chained
+
+
+def test_an_unknown_set_is_named_before_anything_runs():
+    with pytest.raises(ValueError, match="studies/nope"):
+        R.plan(["studies/nope"])
+    assert cli(["regenerate", "studies/nope", "--dry-run"]) == 2
+
+
+def _recorder(tmp_path, name: str, seconds: float = 0.3, code: int = 0) -> str:
+    """A command that writes its start and end times to ``tmp_path/name.json``."""
+    out = tmp_path / f"{name}.json"
+    return ("python -c " + shlex.quote(
+        f"import json, sys, time; t = time.time(); time.sleep({seconds}); "
+        f"open({str(out)!r}, 'w').write(json.dumps([t, time.time()])); sys.exit({code})"))
+
+
+def _times(tmp_path, name):
+    return json.loads((tmp_path / f"{name}.json").read_text())
+
+
+def test_inputs_first_speed_tables_last_and_alone(tmp_path):
+    sets = (EvidenceSet("a", _recorder(tmp_path, "a", 1.0)),
+            EvidenceSet("b", _recorder(tmp_path, "b", 1.0)),
+            EvidenceSet("c", _recorder(tmp_path, "c", 0.1), after=("a",)),
+            EvidenceSet("t1", _recorder(tmp_path, "t1", 0.1), timed=True),
+            EvidenceSet("t2", _recorder(tmp_path, "t2", 0.1), after=("t1",), timed=True))
+    jobs = R.run(list(sets), jobs=2, root=tmp_path, log_dir=tmp_path / "logs", readme=False,
+                 poll_s=0.02, echo=lambda *_: None)
+    assert [j.status for j in jobs] == ["made"] * 5
+    a, b, c, t1, t2 = (_times(tmp_path, n) for n in ("a", "b", "c", "t1", "t2"))
+    assert b[0] < a[1] and a[0] < b[1]  # two jobs at once
+    assert c[0] >= a[1]  # after what it reads
+    untimed_end = max(a[1], b[1], c[1])
+    assert t1[0] >= untimed_end and t2[0] >= t1[1]  # last, one at a time
+
+
+def test_a_failure_skips_what_reads_it_and_nothing_else(tmp_path):
+    (tmp_path / "figures" / "tuning").mkdir(parents=True)
+    storage = tmp_path / "figures" / "tuning" / "tuning.db"
+    storage.write_text("old trials")
+    sets = (EvidenceSet("bad", _recorder(tmp_path, "bad", 0.05, code=3)),
+            EvidenceSet("reader", _recorder(tmp_path, "reader", 0.05), after=("bad",)),
+            EvidenceSet("reader2", _recorder(tmp_path, "reader2", 0.05), after=("reader",)),
+            EvidenceSet("tuning", _recorder(tmp_path, "tuning", 0.05), fresh=("tuning.db",)))
+    jobs = R.run(list(sets), jobs=1, root=tmp_path, log_dir=tmp_path / "logs", readme=True,
+                 poll_s=0.02, echo=lambda *_: None)
+    status = {j.item.folder: j.status for j in jobs}
+    assert status == {"bad": "failed", "reader": "skipped", "reader2": "skipped",
+                      "tuning": "made"}  # and no README step after a failure
+    assert "exit status 3" in jobs[0].note and jobs[0].log.is_file()
+    assert not storage.exists()  # deleted before the command, which would resume from it
+    assert not (tmp_path / "reader.json").exists()
+
+
+def test_jobs_must_be_positive():
+    with pytest.raises(ValueError, match="jobs"):
+        R.run([], jobs=0)
