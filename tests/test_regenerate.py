@@ -77,8 +77,9 @@ def _recorder(tmp_path, name: str, seconds: float = 0.3, code: int = 0) -> str:
     """A command that writes its start and end times to ``tmp_path/name.json``."""
     out = tmp_path / f"{name}.json"
     return ("python -c " + shlex.quote(
-        f"import json, sys, time; t = time.time(); time.sleep({seconds}); "
-        f"open({str(out)!r}, 'w').write(json.dumps([t, time.time()])); sys.exit({code})"))
+        f"import json, os, sys, time; t = time.time(); time.sleep({seconds}); "
+        f"env = [os.environ.get(k) for k in ('OPENBLAS_NUM_THREADS', 'PYTHONUNBUFFERED')]; "
+        f"open({str(out)!r}, 'w').write(json.dumps([t, time.time(), env])); sys.exit({code})"))
 
 
 def _times(tmp_path, name):
@@ -99,6 +100,7 @@ def test_inputs_first_speed_tables_last_and_alone(tmp_path):
     assert c[0] >= a[1]  # after what it reads
     untimed_end = max(a[1], b[1], c[1])
     assert t1[0] >= untimed_end and t2[0] >= t1[1]  # last, one at a time
+    assert a[2] == ["1", "1"]  # one thread each, the output unbuffered (a live log)
 
 
 def test_a_failure_skips_what_reads_it_and_nothing_else(tmp_path):

@@ -147,7 +147,9 @@ def _start(job: Job, root: Path, log_dir: Path, echo, log_name: str | None = Non
     for name in item.fresh:  # files the command would resume from
         (root / "figures" / item.folder / name).unlink(missing_ok=True)
     job.log = log_dir / f"{log_name or item.folder.replace('/', '__') or 'figures'}.log"
-    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+    # one thread per job; the output unbuffered, so that the log shows a long command's progress
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
+           "PYTHONUNBUFFERED": "1"}
     with open(job.log, "w") as out:
         job._process = subprocess.Popen(command_of(item), cwd=root, stdout=out,
                                         stderr=subprocess.STDOUT, env=env)
