@@ -73,6 +73,19 @@ def test_an_unknown_set_is_named_before_anything_runs():
     assert cli(["regenerate", "studies/nope", "--dry-run"]) == 2
 
 
+def test_the_dry_run_says_how_long_each_set_took_last_time(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv(paths.ROOT_ENV, str(tmp_path))
+    folder = tmp_path / "figures" / "studies" / "timeline"
+    folder.mkdir(parents=True)
+    (folder / "timings.json").write_text(json.dumps({"wall_time_s": 150.0}))
+    assert cli(["regenerate", "studies/timeline", "fidelity", "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert "figures/studies/timeline (at once; last run 2.5 min)" in out
+    assert "figures/fidelity (at once; last run not recorded)" in out
+    assert "add up to 0.0 h" in out  # 150 s
+    assert not (tmp_path / "results").exists()  # nothing ran
+
+
 def _recorder(tmp_path, name: str, seconds: float = 0.3, code: int = 0) -> str:
     """A command that writes its start and end times to ``tmp_path/name.json``."""
     out = tmp_path / f"{name}.json"

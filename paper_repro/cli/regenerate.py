@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import os
 
+from paper_repro import paths
 from paper_repro.cli.args import positive_int
 from paper_repro.evidence.regenerate import plan, run
-from paper_repro.evidence.sets import SETS
+from paper_repro.evidence.sets import SETS, last_wall_time_s
 
 HELP = ("make the stale evidence sets again (and those that read them), one job per core, "
         "the speed tables last and alone, then the README's tables")
@@ -23,11 +24,19 @@ def main(args) -> int:
         print("every evidence set is current: nothing to make")
         return 0
     if args.dry_run:
-        print(f"{len(items)} evidence set(s) to make, {args.jobs} at a time:")
+        print(f"{len(items)} evidence set(s) to make, {args.jobs} at a time (the last run's "
+              "wall time, where the set records it):")
+        known = 0.0
         for item in sorted(items, key=lambda s: s.timed):
             when = "last, alone" if item.timed else (
                 f"after {', '.join(item.after)}" if item.after else "at once")
-            print(f"  {item.label} ({when})\n      {item.command} {item.one_core}".rstrip())
+            seconds = last_wall_time_s(paths.figures_dir() / item.folder)
+            known += seconds or 0.0
+            last = f"{seconds / 60:.1f} min" if seconds else "not recorded"
+            print(f"  {item.label} ({when}; last run {last})\n"
+                  f"      {item.command} {item.one_core}".rstrip())
+        print(f"the recorded wall times add up to {known / 3600:.1f} h, one command at a "
+              "time (a set whose runs are cached takes less)")
         return 0
     jobs = run(items, jobs=args.jobs, readme=not args.no_readme)
     print("\n".join(f"{j.status:8s} {j.label:42s} {j.wall_s / 60:6.1f} min  {j.note}".rstrip()

@@ -238,20 +238,17 @@ def regeneration() -> str:
     took on the machine that made it (its ``timings.json``)."""
     import json
 
-    from paper_repro.evidence.sets import EVIDENCE_SETS
+    from paper_repro.evidence.sets import EVIDENCE_SETS, last_wall_time_s
 
     rows = []
     for name in EVIDENCE_SETS:
         folder = paths.figures_dir() / name
         if not folder.is_dir():
             continue
-        stamp, timing = folder / "evidence.json", folder / "timings.json"
+        stamp = folder / "evidence.json"
         made_by = json.loads(stamp.read_text())["made_by"] if stamp.is_file() else "—"
-        wall = "—"
-        if timing.is_file():
-            data = json.loads(timing.read_text())
-            seconds = data.get("wall_time_s", data.get("wall_time_s_last_call"))
-            wall = f"{seconds / 60:.1f} min" if seconds else "—"
+        seconds = last_wall_time_s(folder)
+        wall = f"{seconds / 60:.1f} min" if seconds else "—"
         rows.append([f"`figures/{name}`" if name else "`figures/`", f"`{made_by}`", wall])
     return fmt.markdown_table(["evidence set", "made by", "wall time (2 cores, last run)"], rows)
 

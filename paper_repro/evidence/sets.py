@@ -10,7 +10,9 @@ the machine, so that no other job shares its cores.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from pathlib import Path
 
 LEVERS = ("none reaction-0.5s reaction-1s reaction-2s h-0.03s d_min-2 d_min-3 "
           "d_min-2+reaction-0.5s sweep-0.5s sweep-1s moving-d_min-3 moving-d_min-3+sweep-0.5s "
@@ -105,3 +107,13 @@ SETS = (
 
 EVIDENCE_SETS = tuple(s.folder for s in SETS)
 """Every committed evidence set, as a folder under ``figures/``."""
+
+
+def last_wall_time_s(folder: Path) -> float | None:
+    """How long the command that made the set in ``folder`` took, by its ``timings.json``
+    (s; ``None`` where the command does not record it)."""
+    timing = Path(folder) / "timings.json"
+    if not timing.is_file():
+        return None
+    data = json.loads(timing.read_text())
+    return data.get("wall_time_s", data.get("wall_time_s_last_call")) or None
