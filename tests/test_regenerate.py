@@ -123,12 +123,14 @@ def test_a_failure_skips_what_reads_it_and_nothing_else(tmp_path):
     sets = (EvidenceSet("bad", _recorder(tmp_path, "bad", 0.05, code=3)),
             EvidenceSet("reader", _recorder(tmp_path, "reader", 0.05), after=("bad",)),
             EvidenceSet("reader2", _recorder(tmp_path, "reader2", 0.05), after=("reader",)),
-            EvidenceSet("tuning", _recorder(tmp_path, "tuning", 0.05), fresh=("tuning.db",)))
+            EvidenceSet("tuning", _recorder(tmp_path, "tuning", 0.05), fresh=("tuning.db",)),
+            EvidenceSet("absent", "no-such-program-of-this-test"))
     jobs = R.run(list(sets), jobs=1, root=tmp_path, log_dir=tmp_path / "logs", readme=True,
                  poll_s=0.02, echo=lambda *_: None)
     status = {j.item.folder: j.status for j in jobs}
     assert status == {"bad": "failed", "reader": "skipped", "reader2": "skipped",
-                      "tuning": "made"}  # and no README step after a failure
+                      "tuning": "made", "absent": "failed"}  # and no README step after it
+    assert "could not start" in jobs[-1].note
     assert "exit status 3" in jobs[0].note and jobs[0].log.is_file()
     assert not storage.exists()  # deleted before the command, which would resume from it
     assert not (tmp_path / "reader.json").exists()

@@ -340,8 +340,6 @@ def _layer_files(files: dict, layer: str) -> dict:
     return {name: digest for name, digest in files.items() if name in wanted}
 
 
-
-
 def stamp(folder, made_by: str, layer: str = "") -> Path:
     """Write ``folder/evidence.json``: the golden hash of ``layer`` (:func:`layer_of`: the
     layers the set's runs use) the set was made with, and the command that made it. Call it

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from paper_repro import paths
+from paper_repro.evidence.golden import stale_evidence
 from paper_repro.evidence.sets import SETS, EvidenceSet
 
 README = "python -m paper_repro readme"
@@ -41,8 +42,6 @@ def plan(names=None, sets: tuple[EvidenceSet, ...] = SETS) -> list[EvidenceSet]:
     ``ValueError`` naming an unknown set."""
     by_folder = {s.folder: s for s in sets}
     if names is None:
-        from paper_repro.evidence.golden import stale_evidence
-
         names = ["" if n == "figures" else n for n in stale_evidence()]
     unknown = [n for n in names if n not in by_folder]
     if unknown:
@@ -132,8 +131,9 @@ def run(items: list[EvidenceSet], jobs: int = 2, root: Path | None = None,
     if readme and todo and all(j.status == "made" for j in todo):
         last = Job(EvidenceSet("", README), name="the README's and the book's tables")
         _start(last, root, log_dir, echo, log_name="readme")
-        last._process.wait()
-        _finish(last, echo)
+        if last.status == "running":
+            last._process.wait()
+            _finish(last, echo)
         todo.append(last)
     return todo
 
@@ -150,10 +150,16 @@ def _start(job: Job, root: Path, log_dir: Path, echo, log_name: str | None = Non
     # one thread per job; the output unbuffered, so that the log shows a long command's progress
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
            "PYTHONUNBUFFERED": "1"}
-    with open(job.log, "w") as out:
-        job._process = subprocess.Popen(command_of(item), cwd=root, stdout=out,
-                                        stderr=subprocess.STDOUT, env=env)
-    job.status, job._started = "running", time.monotonic()
+    job._started = time.monotonic()
+    try:
+        with open(job.log, "w") as out:
+            job._process = subprocess.Popen(command_of(item), cwd=root, stdout=out,
+                                            stderr=subprocess.STDOUT, env=env)
+    except OSError as exc:  # a command that cannot start is a failure like any other
+        job.status, job.note = "failed", f"could not start: {exc}"
+        echo(f"failed {job.label}: {job.note}")
+        return
+    job.status = "running"
     echo(f"started {job.label}: {item.command} {item.one_core}".rstrip())
 
 
