@@ -13,7 +13,14 @@ import pytest
 from paper_repro import paths
 from paper_repro.cli.parser import main as cli
 from paper_repro.evidence import regenerate as R
-from paper_repro.evidence.sets import EVIDENCE_SETS, SETS, EvidenceSet
+from paper_repro.evidence.sets import (
+    EVIDENCE_SETS,
+    RECORDED_BY,
+    SETS,
+    EvidenceSet,
+    last_wall_time_s,
+    record_wall_time,
+)
 
 
 def test_every_set_reads_only_listed_sets_made_before_it():
@@ -114,6 +121,29 @@ def test_inputs_first_speed_tables_last_and_alone(tmp_path):
     untimed_end = max(a[1], b[1], c[1])
     assert t1[0] >= untimed_end and t2[0] >= t1[1]  # last, one at a time
     assert a[2] == ["1", "1"]  # one thread each, the output unbuffered (a live log)
+
+
+def test_a_set_that_records_no_wall_time_gets_the_measured_one(tmp_path):
+    """The regeneration writes the wall time it measured into the ``timings.json`` of a set
+    whose command writes none, replaces it on the next call, and leaves a command's own
+    ``timings.json`` as the command wrote it."""
+    own = tmp_path / "figures" / "own"
+    own.mkdir(parents=True)
+    writes_own = ("python -c " + shlex.quote(
+        f"import json; open({str(own / 'timings.json')!r}, 'w').write("
+        f"json.dumps({{'wall_time_s': 7.0}}))"))
+    sets = [EvidenceSet("own", writes_own), EvidenceSet("bare", _recorder(tmp_path, "b", 0.2))]
+    for _ in range(2):
+        jobs = R.run(sets, jobs=2, root=tmp_path, log_dir=tmp_path / "logs", readme=False,
+                     poll_s=0.02, echo=lambda *_: None)
+        bare = json.loads((tmp_path / "figures" / "bare" / "timings.json").read_text())
+        assert bare["recorded_by"] == RECORDED_BY and "machine" in bare["meta"]
+        assert bare["wall_time_s"] == jobs[1].wall_s >= 0.2
+        assert last_wall_time_s(tmp_path / "figures" / "bare") == jobs[1].wall_s
+        assert json.loads((own / "timings.json").read_text()) == {"wall_time_s": 7.0}
+    assert not record_wall_time(own, 1.0)  # the command's own record stays
+    with pytest.raises(ValueError, match="seconds"):
+        record_wall_time(own, -1.0)
 
 
 def test_a_failure_skips_what_reads_it_and_nothing_else(tmp_path):

@@ -302,7 +302,7 @@ def write_golden(names=None, force: bool = False) -> list[dict]:
                           for layer in LAYERS if layer},
                "position_tolerance_m": POSITION_TOLERANCE, "input_tolerance": INPUT_TOLERANCE,
                "flights": {f.name: f.description for f in GOLDEN_FLIGHTS}}
-    _atomic_text(folder / "golden.json", json.dumps(payload, indent=1) + "\n")
+    atomic_text(folder / "golden.json", json.dumps(payload, indent=1) + "\n")
     return rows
 
 
@@ -349,7 +349,7 @@ def stamp(folder, made_by: str, layer: str = "") -> Path:
     if layer:
         record["layer"] = layer
     text = json.dumps(record, indent=1) + "\n"
-    _atomic_text(out, text)
+    atomic_text(out, text)
     return out
 
 
@@ -438,11 +438,14 @@ def _atomic_save(path: Path, array: np.ndarray) -> None:
     os.replace(tmp, path)
 
 
-def _atomic_text(path: Path, text: str) -> None:
+def atomic_text(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file renamed over it: a reader never
+    sees half a file."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     tmp.write_text(text)
     os.replace(tmp, path)
+
 
 def _select(names) -> list[GoldenFlight]:
     if not names:

@@ -12,10 +12,13 @@ one of them (:attr:`~paper_repro.evidence.sets.EvidenceSet.after`), then runs th
 3. then ``python -m paper_repro readme``, which formats the README's and the book's tables
    from the new ones.
 
-Each command's output goes to ``results/regenerate/<set>.log``. A command that fails is
-recorded, the sets that read it are skipped, and the others go on: nothing already made is
-lost, and a second call plans only what is still stale. Flights come from the run cache
-where they were flown before, so a call stopped half-way loses at most the runs in flight.
+Each command's output goes to ``results/regenerate/<set>.log``. A set whose command does not
+record its own wall time gets the one measured here in its ``timings.json``
+(:func:`~paper_repro.evidence.sets.record_wall_time`), for the next dry run to show. A command
+that fails is recorded, the sets that read it are skipped, and the others go on: nothing
+already made is lost, and a second call plans only what is still stale. Flights come from the
+run cache where they were flown before, so a call stopped half-way loses at most the runs in
+flight.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from pathlib import Path
 
 from paper_repro import paths
 from paper_repro.evidence.golden import stale_evidence
-from paper_repro.evidence.sets import SETS, EvidenceSet
+from paper_repro.evidence.sets import SETS, EvidenceSet, record_wall_time
 
 README = "python -m paper_repro readme"
 """Run last, when every planned set was made."""
@@ -100,6 +103,7 @@ def run(items: list[EvidenceSet], jobs: int = 2, root: Path | None = None,
                 _finish(job, echo)
                 if job.status == "made":
                     done.add(job.item.folder)
+                    record_wall_time(root / "figures" / job.item.folder, job.wall_s)
         for job in todo:  # a set whose input failed or was skipped is skipped
             if job.status == "waiting":
                 lost = [a for a in job.item.after if a in planned and a not in done

@@ -111,9 +111,32 @@ EVIDENCE_SETS = tuple(s.folder for s in SETS)
 
 def last_wall_time_s(folder: Path) -> float | None:
     """How long the command that made the set in ``folder`` took, by its ``timings.json``
-    (s; ``None`` where the command does not record it)."""
+    (s; ``None`` where neither the command nor the regeneration recorded it)."""
     timing = Path(folder) / "timings.json"
     if not timing.is_file():
         return None
     data = json.loads(timing.read_text())
     return data.get("wall_time_s", data.get("wall_time_s_last_call")) or None
+
+
+RECORDED_BY = "python -m paper_repro regenerate"
+"""What :func:`record_wall_time` writes in the ``timings.json`` it owns."""
+
+
+def record_wall_time(folder: Path, seconds: float) -> bool:
+    """Record in ``folder/timings.json`` that the command that made the set took ``seconds``
+    (s, its wall time as the regeneration measured it), with the versions, commit and machine,
+    for a set whose command does not record it itself (the benchmark scripts that fly outside
+    the study engine). A ``timings.json`` the command wrote is left as it is; one this function
+    wrote before is replaced. Returns whether it wrote."""
+    from paper_repro.evidence.golden import atomic_text
+    from paper_repro.sim.result import run_metadata
+
+    if not (isinstance(seconds, (int, float)) and seconds >= 0):
+        raise ValueError(f"seconds must be a number >= 0, got {seconds!r}")
+    timing = Path(folder) / "timings.json"
+    if timing.is_file() and json.loads(timing.read_text()).get("recorded_by") != RECORDED_BY:
+        return False
+    record = {"wall_time_s": float(seconds), "recorded_by": RECORDED_BY, "meta": run_metadata()}
+    atomic_text(timing, json.dumps(record, indent=1, default=str) + "\n")
+    return True
