@@ -40,9 +40,9 @@ VARIANTS = {  # name -> (solver, controller options)
     "rti": ("rti", {"max_iter": 1}),
     "rti-damped": ("rti", {"max_iter": 1, "line_search": True}),
     "rti-hpipm": ("rti", {"max_iter": 1, "qp_solver": "hpipm"}),
-    "rti-ipm": ("rti", {"max_iter": 1, "qp_solver": "riccati-ipm"}),
-    "rti-damped-ipm": ("rti", {"max_iter": 1, "line_search": True,
-                               "qp_solver": "riccati-ipm"}),
+    "rti-riccati": ("rti", {"max_iter": 1, "qp_solver": "riccati"}),
+    "rti-damped-riccati": ("rti", {"max_iter": 1, "line_search": True,
+                                   "qp_solver": "riccati"}),
     "sqp-2": ("rti", {"max_iter": 2}),
     "sqp-converged": ("rti", {"max_iter": 30, "step_tol": 1e-9}),
 }

@@ -42,15 +42,14 @@ def pillar_scene() -> Scene:
 
 
 VARIANTS = {  # name -> (prediction, damped RTI, QP chain, the moving design's controller)
-    "static (the paper's prediction)": ("static", False, "riccati", False),
-    "oracle, full steps (the default solver)": ("oracle", False, "riccati", False),
-    "oracle, damped RTI": ("oracle", True, "riccati", False),
-    "static, riccati-ipm": ("static", False, "riccati-ipm", False),
-    "oracle, full steps, riccati-ipm": ("oracle", False, "riccati-ipm", False),
-    "oracle, damped RTI, riccati-ipm (the moving study's paper rows)":
-        ("oracle", True, "riccati-ipm", False),
-    "oracle, damped RTI, riccati-ipm, the design (the moving study's design rows)":
+    "static (the paper's prediction)": ("static", False, "riccati-ipm", False),
+    "oracle, full steps (the default solver)": ("oracle", False, "riccati-ipm", False),
+    "oracle, damped RTI (the moving study's paper rows)": ("oracle", True, "riccati-ipm", False),
+    "oracle, damped RTI, the design (the moving study's design rows)":
         ("oracle", True, "riccati-ipm", True),
+    "static, riccati (HPIPM in the tail)": ("static", False, "riccati", False),
+    "oracle, full steps, riccati": ("oracle", False, "riccati", False),
+    "oracle, damped RTI, riccati": ("oracle", True, "riccati", False),
 }
 
 

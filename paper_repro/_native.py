@@ -4,7 +4,7 @@ Two kinds of C are built here:
 
 * CasADi functions turned into C (:class:`NativeFunction`): the SQP's linearisation,
   generated from the symbolic model;
-* the stage-structured QP solver written for this package (``_stage_qp.c``).
+* the stage-structured QP solver written for this package (``solvers/_riccati_qp.c``).
 
 Shared libraries are keyed by a hash of their source and the compiler flags, and cached in
 ``$PAPER_REPRO_CACHE`` or ``~/.cache/paper_repro``, so each is compiled once per machine.

@@ -330,18 +330,19 @@ class SolverParams:
         metric it removes most of the chattering the paper reports (Fig. 8), so it is not the
         default. It is the remedy where a region moves at the vehicle, where full steps fall
         into a period-2 oscillation that IPOPT does not show (``benchmarks/fidelity.py``).
-    qp_solver : QP solver of the ``rti`` solver: ``"riccati"`` (default, a Riccati recursion
-        warm-started with the previous active set, :mod:`paper_repro.solvers.riccati_qp`, HPIPM as
-        its fallback), ``"riccati-ipm"`` (the same with a budget of a few factorisations, then
-        an interior-point method on the same Riccati kernels, HPIPM last: the tail where
-        regions move across the horizon, :data:`paper_repro.solvers.rti.IPM_ACTIVE_SET_BUDGET`)
-        or ``"hpipm"`` (HPIPM's interior-point method for every QP).
+    qp_solver : QP solver of the ``rti`` solver: ``"riccati-ipm"`` (default: a Riccati
+        recursion warm-started with the previous active set (:mod:`~paper_repro.solvers.riccati_qp`)
+        within a few factorisations (:data:`paper_repro.solvers.rti.IPM_ACTIVE_SET_BUDGET`),
+        then an interior point on the same kernels, polished by the first; HPIPM last),
+        ``"riccati"`` (the active set without a budget, HPIPM as its fallback, whose 5-15 ms
+        calls break T_s where the set changes by dozens of bounds at once: a chattering
+        Euclidean passage, a region crossing the horizon) or ``"hpipm"`` (HPIPM for every QP).
     """
 
     nlp_solver: str = "rti"
     sqp_iterations: int = 1
     line_search: bool = False
-    qp_solver: str = "riccati"
+    qp_solver: str = "riccati-ipm"
 
     def __post_init__(self):
         require_choice("nlp_solver", self.nlp_solver, ("rti", "reference"))

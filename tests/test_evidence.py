@@ -66,7 +66,7 @@ def test_the_golden_design_flight_flies_the_moving_study_design():
     plain = dataclasses.replace(flight, barrier=(), prediction_ts=None,
                                 approach_time=None).config()
     assert flight.config() == moving_design(plain, "smooth")
-    assert evidence.layer_of(flight.config()) == "riccati-ipm+sweep"
+    assert evidence.layer_of(flight.config()) == "sweep"
     # The committed flight sees a region for most of its steps (the LiDAR, not the plan).
     rows = np.load(paths.golden_dir() / f"{flight.name}.npy")
     scene = mission_scene(flight.config().simulation)
@@ -99,15 +99,13 @@ def _rewrite_golden(folder, name):
          "layers": layers}))
 
 
-@pytest.mark.parametrize("layer", ["map", "guide", "riccati-ipm", "sweep",
-                                   "riccati-ipm+sweep"])
+@pytest.mark.parametrize("layer", ["map", "guide", "riccati", "sweep"])
 def test_a_change_to_a_layer_retires_only_what_uses_it(tmp_path, monkeypatch, layer):
     """A layer's golden flight moved: the runs and evidence sets that use the layer, or one
     built on it, go stale (the map's change retires the guided runs too, the guide's leaves
-    the map-only runs alone, the interior point's only the runs that solve with it, mapped or
-    not, the swept path's on the default chain the runs that sweep, and the design's flight,
-    of both layers, only the runs that sweep on the interior-point chain); the others keep
-    their keys and stamps."""
+    the map-only runs alone, the active-set chain's only the runs that choose it, mapped or
+    not, the swept path's the runs that sweep, on either chain); the others keep their keys
+    and stamps."""
     import dataclasses
 
     shutil.copytree(paths.golden_dir(), tmp_path / "figures" / "golden")
@@ -116,31 +114,29 @@ def test_a_change_to_a_layer_retires_only_what_uses_it(tmp_path, monkeypatch, la
                                                                       map_voxel=0.5))
     guided = dataclasses.replace(mapped, guide=GuideParams(planner="grid"))
 
-    def ipm(cfg):
+    def ipm(cfg):  # the active-set chain without a budget (HPIPM in the tail)
         return dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver,
-                                                                   qp_solver="riccati-ipm"))
+                                                                   qp_solver="riccati"))
 
     def swept(cfg):
         return dataclasses.replace(
             cfg, nmpc=dataclasses.replace(cfg.nmpc, prediction="oracle"),
             barrier=dataclasses.replace(cfg.barrier, sweep_time=1.0))
 
-    configs = {"": Config(), "map": mapped, "guide": guided, "riccati-ipm": ipm(Config()),
-               "map+riccati-ipm": ipm(mapped), "sweep": swept(Config()),
-               "riccati-ipm+sweep": swept(ipm(Config()))}
+    configs = {"": Config(), "map": mapped, "guide": guided, "riccati": ipm(Config()),
+               "map+riccati": ipm(mapped), "sweep": swept(Config()),
+               "riccati+sweep": swept(ipm(Config()))}
     assert [evidence.layer_of(*c) for c in ((Config(),), (Config(), mapped), (mapped, guided),
                                             (Config(), ipm(Config())), (guided, ipm(mapped)),
                                             (swept(Config()),))
-            ] == ["", "map", "guide", "riccati-ipm", "guide+riccati-ipm", "sweep"]
-    # The swept path on the default chain is a layer of its own, on the core: the design's
-    # flight (the swept path on the interior-point chain) is in neither alone.
+            ] == ["", "map", "guide", "riccati", "guide+riccati", "sweep"]
+    # The swept path is a layer of its own, on the core; a set of both covers both.
     assert evidence.covered_layers("sweep") == {"", "sweep"}
-    assert len({evidence.golden_hash(x) for x in ("sweep", "riccati-ipm",
-                                                  "riccati-ipm+sweep")}) == 3
+    assert len({evidence.golden_hash(x) for x in ("sweep", "riccati", "riccati+sweep")}) == 3
     assert all(evidence.layer_of(cfg) == used for used, cfg in configs.items())
     sets = {"": "studies/monte_carlo", "map": "studies/sensor_noise", "guide": "guidance_cost",
-            "riccati-ipm": "studies/moving_obstacles", "map+riccati-ipm": "guide_filter",
-            "sweep": "studies/moving_levers", "riccati-ipm+sweep": "studies/moving_heldout"}
+            "riccati": "solver_speed/crossing", "map+riccati": "studies/sensing_window",
+            "sweep": "studies/moving_heldout", "riccati+sweep": "studies/moving_levers"}
     for used, name in sets.items():
         (tmp_path / "figures" / name).mkdir(parents=True)
         evidence.stamp(tmp_path / "figures" / name, "test", used)

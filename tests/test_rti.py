@@ -20,7 +20,7 @@ from paper_repro.sim.loop import simulate
 from paper_repro.sim.plant import Plant
 from paper_repro.solvers.factory import make_controller
 from paper_repro.solvers.ipopt import TrackingNMPC
-from paper_repro.solvers.rti import RealTimeNMPC
+from paper_repro.solvers.rti import CAPACITIES, RealTimeNMPC
 from paper_repro.vehicles.quadrotor import equilibrium, rk4_discretisation
 
 SMALL = NMPCParams(region_slots=1, points_per_region=48)
@@ -126,8 +126,8 @@ def test_the_interior_point_flies_the_same_closed_loop(scene):
 
 def test_on_a_crossing_the_interior_point_takes_what_the_active_set_gives_up():
     """A box crossing the path (oracle prediction, full steps): the active set changes by
-    dozens of bounds from one QP to the next. The default chain leaves such QPs to HPIPM;
-    ``riccati-ipm`` solves every one on its own kernels, and flies as clear."""
+    dozens of bounds from one QP to the next. The ``riccati`` chain leaves such QPs to HPIPM;
+    ``riccati-ipm`` (the default) solves every one on its own kernels, and flies as clear."""
     cfg = Config(simulation=SimulationParams(scenario="crossing"),
                  nmpc=dataclasses.replace(SMALL, prediction="oracle"))
     runs, counts = {}, {}
@@ -183,7 +183,7 @@ def test_without_compiled_code_the_same_step_comes_out(scene):
 @pytest.mark.parametrize("metric", ["smooth", "euclidean"])
 def test_a_smaller_lidar_capacity_gives_the_same_step(scene, metric):
     """A scan of a few points goes to the smallest capacity that holds it: padding contributes
-    exactly 0, so the step equals the one of the full capacity (48 here)."""
+    exactly 0, so the step equals the one of the full capacity."""
     x0, _ = equilibrium([-18.3, 0.2, 2.0])
     x0[6] = 0.3
     visible = Lidar(scene.clouds).scan(x0[:3])
@@ -191,8 +191,9 @@ def test_a_smaller_lidar_capacity_gives_the_same_step(scene, metric):
     assert 0 < max(counts) <= 16
     ladder = RealTimeNMPC(_config(metric))
     full = RealTimeNMPC(_config(metric), capacities=())
-    assert [scan.capacity for scan, *_ in ladder.ladder.rungs] == [1, 8, 16, 24, 32, 48]
-    fitting = min(c for c in (1, 8, 16, 24, 32, 48) if c >= max(counts))
+    rungs = [c for c in CAPACITIES if c < SMALL.points_per_region] + [SMALL.points_per_region]
+    assert [scan.capacity for scan, *_ in ladder.ladder.rungs] == rungs
+    fitting = min(c for c in rungs if c >= max(counts))
     assert ladder.ladder.for_scan(visible).scan.capacity == fitting
     a = ladder.solve(x0, scene.targets[0], visible)
     b = full.solve(x0, scene.targets[0], visible)

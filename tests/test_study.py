@@ -86,13 +86,14 @@ def test_the_moving_study_flies_each_crossing_with_every_prediction_and_the_desi
     assert design[0].scene().fingerprint() != paper[0].scene().fingerprint()
     assert len({s.name for s in study.specs}) == len(study.specs)
     assert study.specs[0].scene().is_moving
-    # The damped RTI on the interior-point chain; its runs and its stamp carry that layer's
-    # golden hash, so a change to the interior point retires them.
+    # The damped RTI on the default (interior-point) chain; the design's runs and the study's
+    # stamp carry the swept path's golden hash, so a change to it retires them.
     from paper_repro.evidence.golden import layer_of
 
     assert all(s.config.solver.line_search for s in study.specs)
-    assert {layer_of(s.config) for s in paper} == {"riccati-ipm"}
-    assert {layer_of(s.config) for s in design} == {"riccati-ipm+sweep"}
+    assert all(s.config.solver.qp_solver == "riccati-ipm" for s in study.specs)
+    assert {layer_of(s.config) for s in paper} == {""}
+    assert {layer_of(s.config) for s in design} == {"sweep"}
     # One controller per worker and configuration: the prediction and the barrier are part of
     # the problem (the scan carries velocities), the scene and the seed are not.
     keys = {(lab["barrier"], lab["prediction"]): S.controller_key(s.config)

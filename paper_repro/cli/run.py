@@ -26,10 +26,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--solver", choices=("rti", "reference"), default="rti",
                         help="rti: Gauss-Newton real-time iteration (default); reference: "
                              "IPOPT, exact Hessian, as in the paper")
-    parser.add_argument("--qp-solver", choices=QP_SOLVERS, default="riccati",
-                        help="QP solver of rti: riccati (warm-started active set, default), "
-                             "riccati-ipm (the same, then an interior point on its kernels "
-                             "where the active set changes a lot) or hpipm (interior point)")
+    parser.add_argument("--qp-solver", choices=QP_SOLVERS, default="riccati-ipm",
+                        help="QP solver of rti: riccati-ipm (warm-started active set, then "
+                             "an interior point on its kernels where the active set changes "
+                             "a lot; default), riccati (the active set, HPIPM where it runs "
+                             "out) or hpipm (interior point)")
     parser.add_argument("--line-search", action="store_true",
                         help="rti: the damped real-time iteration (merit line search and "
                              "Levenberg-Marquardt damping; smoother than the paper's "

@@ -7,10 +7,10 @@ makes. Two things enforce it.
   mission with each metric, the encounter with each metric, a random passage, the moving
   ``crossing``, the IPOPT reference at one instant-rich window, the ground robot; in the
   ``"map"`` layer (:data:`LAYERS`), the noisy LiDAR through the local map; in the
-  ``"guide"`` layer, the same with the guide; in the ``"riccati-ipm"`` layer, the crossing
-  with the interior-point QP chain the moving-obstacle study flies; in the ``"sweep"``
-  layer, the crossing with the region's swept path on the default chain; in both, a crossing
-  flown with that study's design). Their
+  ``"guide"`` layer, the same with the guide; in the ``"riccati"`` layer, the crossing on
+  the active-set QP chain without a budget (HPIPM where it runs out), the default until the
+  interior point took the tail; in the ``"sweep"`` layer, the crossing with the region's
+  swept path and a crossing flown with the moving-obstacle study's design). Their
   states and inputs are committed in ``figures/golden/<name>.npy`` and
   ``figures/golden/golden.json`` holds the SHA-256 of each file and of the whole set, the
   *golden hash*. ``tests/test_evidence.py``
@@ -27,8 +27,9 @@ makes. Two things enforce it.
   of that layer and of the layers built on it: the runs and sets that read the local map carry the
   ``"map"`` hash and the guided ones the ``"guide"`` hash, so a change to the map retires
   them all, a change to the guide only the guided ones, and every other run and set stays as
-  it is. Likewise the runs that solve their QPs with the ``"riccati-ipm"`` chain carry that
-  layer's hash, and those that sweep a moving region's path the ``"sweep"`` hash.
+  it is. Likewise the runs that solve their QPs with the ``"riccati"`` chain (no budget,
+  HPIPM as the fallback) carry that layer's hash, and those that sweep a moving region's path
+  the ``"sweep"`` hash.
 
 A pure refactor leaves every golden flight within tolerance: the committed files, the hash,
 the stamps and the cache keys stay as they are, and nothing needs re-flying.
@@ -80,11 +81,10 @@ class GoldenFlight:
     approach_time : the pace of a ``random-crossing`` (``SimulationParams.approach_time``;
         ``None``: the printed set-up's).
     layer : ``""`` (the core), ``"map"`` (the noisy LiDAR read through the local map),
-        ``"guide"`` (the same with the guide), ``"riccati-ipm"`` (the interior-point QP
-        chain) or ``"sweep"`` (the swept path of a moving region) (:data:`LAYERS`), or
-        names of them joined by ``"+"`` for a flight that needs each (the moving design
-        sweeps on the interior-point chain): its file enters the hash of a layer that
-        covers them all.
+        ``"guide"`` (the same with the guide), ``"riccati"`` (the active-set QP chain
+        without a budget) or ``"sweep"`` (the swept path of a moving region)
+        (:data:`LAYERS`), or names of them joined by ``"+"`` for a flight that needs each:
+        its file enters the hash of a layer that covers them all.
     """
 
     name: str
@@ -97,7 +97,7 @@ class GoldenFlight:
     solver: str = "rti"
     prediction: str = "static"
     line_search: bool = False
-    qp_solver: str = "riccati"
+    qp_solver: str = "riccati-ipm"
     start: tuple[str, int] | None = None
     vehicle: str = "quadrotor"
     barrier: tuple = ()
@@ -152,10 +152,17 @@ GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
                  solver="reference", start=("encounter-smooth", 600)),
     GoldenFlight("passage-smooth-s003", "a random passage (nonconvex regions, finish line)",
                  scenario="random", kind="passage", seed=3, steps=600),
+    GoldenFlight("passage-smooth-s014", "a random passage into its densest scans: from step "
+                 "1,944 a region shows 49-50 points, so every rung of the capacity ladder up "
+                 "to the largest a random passage reaches is flown (each is its own compiled "
+                 "function)", scenario="random", kind="passage", seed=14, steps=2400),
+    GoldenFlight("passage-euclidean-s014", "the same with the Euclidean metric (its own "
+                 "compiled rungs)", scenario="random", kind="passage", seed=14,
+                 metric="euclidean", steps=2400),
     GoldenFlight("crossing-smooth", "a region moving across the line, predicted by the "
                  "oracle (velocities in the scan), the damped RTI on the default QP chain "
-                 "(the active set, HPIPM where it runs out: 12 QPs here)", scenario="crossing",
-                 steps=900, prediction="oracle", line_search=True),
+                 "(the active set, then the interior point where it runs out)",
+                 scenario="crossing", steps=900, prediction="oracle", line_search=True),
     GoldenFlight("ground-robot-smooth", "the unicycle round the L-wall (another vehicle, "
                  "another output dimension)", steps=200, vehicle="unicycle"),
     GoldenFlight("passage-map-noisy-s010", "the first 15 s of a random passage with the "
@@ -166,11 +173,10 @@ GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
                  "map points in range, the guide re-planning round what the map has "
                  "confirmed, its set-point filtered",
                  scenario="random", kind="passage", seed=10, steps=1500, layer="guide"),
-    GoldenFlight("crossing-smooth-ipm", "the crossing with the interior-point QP chain, as "
-                 "the moving-obstacle study flies it (the active set, then the interior "
-                 "point where it runs out)", scenario="crossing", steps=900,
-                 prediction="oracle", line_search=True, qp_solver="riccati-ipm",
-                 layer="riccati-ipm"),
+    GoldenFlight("crossing-smooth-riccati", "the crossing on the active-set chain without a "
+                 "budget (HPIPM where it runs out: 12 QPs here), as the solver-speed "
+                 "benchmarks fly it", scenario="crossing", steps=900, prediction="oracle",
+                 line_search=True, qp_solver="riccati", layer="riccati"),
     GoldenFlight("crossing-smooth-sweep", "the crossing with the region's swept path (1 s) "
                  "on the default QP chain, as the levers that sweep fly it", scenario="crossing",
                  steps=900, prediction="oracle", line_search=True,
@@ -178,45 +184,44 @@ GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
     GoldenFlight("crossing-smooth-design", "a random crossing timed to the moving study's "
                  "design, flown with it (smoothed metric): the regions' swept paths and wider "
                  "margin in view for most of its 15 s, the 0.525 s prediction, the damped RTI "
-                 "on the interior-point chain (a third of its QPs)", scenario="random-crossing",
+                 "(the interior point for a third of its QPs)", scenario="random-crossing",
                  kind="passage", seed=1, approach_time=27.0, steps=1500, prediction="oracle",
-                 line_search=True, qp_solver="riccati-ipm", prediction_ts=0.015,
-                 barrier=(("moving_d_min", 3.0), ("sweep_time", 1.0)),
-                 layer="riccati-ipm+sweep"),
+                 line_search=True, prediction_ts=0.015,
+                 barrier=(("moving_d_min", 3.0), ("sweep_time", 1.0)), layer="sweep"),
 )
 
-LAYERS = ("", "map", "guide", "riccati-ipm", "sweep")
+LAYERS = ("", "map", "guide", "riccati", "sweep")
 """The layers of the golden flights. The core (``""``) covers what every run flies; the
 ``"map"`` layer the local map (``sensor.map_voxel`` > 0), the ``"guide"`` layer the guide on
-the map (``guide.planner`` other than ``"none"``), and the ``"riccati-ipm"`` layer the
-interior-point QP chain (``solver.qp_solver``), which only some runs use, and the
-``"sweep"`` layer the swept path of a region predicted to move (``barrier.sweep_time`` > 0) on
-the default chain; the moving study's design, which sweeps on the interior-point chain, has a
-flight of both (``"riccati-ipm+sweep"``). A layer's hash covers its flights and those of the
+the map (``guide.planner`` other than ``"none"``), the ``"riccati"`` layer the active-set QP
+chain without a budget (``solver.qp_solver``), which only the solver benchmarks choose, and
+the ``"sweep"`` layer the swept path of a region predicted to move (``barrier.sweep_time`` >
+0). A flight of several layers (``"riccati+sweep"``, say) enters the hash of a layer that
+covers them all. A layer's hash covers its flights and those of the
 layers it is built on (:data:`LAYER_BASES`), and a combined layer's those of its parts and the
 flights of the combination. A run's
 cache key and an evidence set's stamp hold the golden hash of the layers they use
 (:func:`golden_hash`, :func:`layer_of`): a change to the map retires the cached runs and
 stamps that use the map (guided or not), a change to the guide those that use the guide, a
-change to the interior point those that use it, and the others stay as they are."""
+change to the active-set chain's fallback those that choose it, and the others stay as they
+are."""
 
-LAYER_BASES = {"": (), "map": ("",), "guide": ("", "map"), "riccati-ipm": ("",),
-               "sweep": ("",)}
+LAYER_BASES = {"": (), "map": ("",), "guide": ("", "map"), "riccati": ("",), "sweep": ("",)}
 """Layer → the layers it is built on."""
 
 
 def layer_of(*configs) -> str:
     """The golden layers runs of ``configs`` use, joined by ``"+"``: ``"guide"`` when any is
-    guided, else ``"map"`` when any reads the local map; ``"riccati-ipm"`` when any solves
-    its QPs with that chain; and ``"sweep"`` when any sweeps a moving region's path. The core
+    guided, else ``"map"`` when any reads the local map; ``"riccati"`` when any solves its
+    QPs with that chain; and ``"sweep"`` when any sweeps a moving region's path. The core
     ``""`` when none of these."""
     used = []
     if any(c.guide.planner != "none" for c in configs):
         used.append("guide")
     elif any(c.sensor.map_voxel > 0 for c in configs):
         used.append("map")
-    if any(c.solver.qp_solver == "riccati-ipm" for c in configs):
-        used.append("riccati-ipm")
+    if any(c.solver.qp_solver == "riccati" for c in configs):
+        used.append("riccati")
     if any(c.barrier.sweep_time > 0 for c in configs):
         used.append("sweep")
     return "+".join(used)

@@ -128,11 +128,12 @@ def solver_speed(scenario: str) -> str:
     folder = paths.figures_dir() / "solver_speed" / scenario
     table = pd.read_csv(folder / "speed.csv").merge(
         pd.read_csv(folder / "speed_timings.csv"), on="solver")
-    names = {"reference": "reference (IPOPT)", "rti": "rti (the default: 1 SQP step, Riccati QP)",
+    names = {"reference": "reference (IPOPT)",
+             "rti": "rti (the default: 1 SQP step, Riccati QP, interior point in the tail)",
              "rti-damped": "rti-damped (line search and damping)",
              "rti-hpipm": "rti-hpipm (HPIPM for every QP)", "sqp-2": "sqp-2",
-             "rti-ipm": "rti-ipm (the chain riccati-ipm)",
-             "rti-damped-ipm": "rti-damped-ipm (damped, riccati-ipm)",
+             "rti-riccati": "rti-riccati (the chain riccati: HPIPM in the tail)",
+             "rti-damped-riccati": "rti-damped-riccati (damped, riccati)",
              "sqp-converged": "sqp-converged"}
     ipm = "ipm_qps" in table and bool(table["ipm_qps"].any())
     rows = [[names.get(r.solver, r.solver), fmt.ms(r.median_ms), fmt.ms(r.p95_ms), fmt.ms(r.p99_ms),

@@ -67,7 +67,7 @@ SETS = (
                 timed=True),
     EvidenceSet("solver_speed/crossing",
                 "python benchmarks/solver_speed.py --scenario crossing --steps 3000 --solvers rti "
-                "rti-damped rti-hpipm sqp-2 rti-ipm rti-damped-ipm --save", timed=True),
+                "rti-damped rti-hpipm sqp-2 rti-riccati rti-damped-riccati --save", timed=True),
     EvidenceSet("solver_speed/swept_pillar",
                 "python benchmarks/swept_pillar.py --save --steps 1200", timed=True),
     EvidenceSet("throughput",

@@ -94,12 +94,11 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
     bj = beta(h(x), params, tau)  # stage j: τ = j·h
     gj = [(ocp.violation(s[i], bj[i]), active[i]) for i in range(ns)]
     phij = ca.vertcat(f(x, u), a, bj)
-    inner = ca.Function("inner", [x, a, s, u, params, tau],
-                        terms(ocp.tracking_residual(x, u, x_a, u_a), gj, vj)
-                        + dynamics(phij, vj))
-    x_prev = ca.SX.sym("x_prev", nx)
-    stage = ca.Function("stage", [x_prev, x, a, u, params, tau],
-                        inner(x, a, beta(h(x_prev), params, tau - ocp.step), u, params, tau))
+    # The stage also hands on β(y_j), the next stage's s_{j+1}: each β is evaluated once, at
+    # its own stage (with its gradient), rather than again, alone, at the next one.
+    stage = ca.Function("stage", [s, x, a, u, params, tau],
+                        [bj, *terms(ocp.tracking_residual(x, u, x_a, u_a), gj, vj),
+                         *dynamics(phij, vj)])
 
     # Stage N: v = (x, a, s); cost T‖y_a − y_t‖², the last barrier terms; x_N = x_a (and
     # x_a = f(x_a, u_a) without a parametrisation).
@@ -112,12 +111,10 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
                      (ocp.violation(bn[i], ba[i]), active[i]),
                      (ocp.equilibrium_violation(ba[i]), active[i])]
     eq_res = ca.vertcat(x - x_a, ocp.equilibrium_rows(a))
-    inner_n = ca.Function("inner_n", [x, a, s, params, tau],
+    stage_n = ca.Function("stage_n", [x, a, s, params, tau],
                           terms(ocp.offset_residual(y_a, yt), gn_terms, vn)
                           + ([] if values_only else [ca.vec(ca.jacobian(eq_res, vn))])
                           + [eq_res])
-    stage_n = ca.Function("stage_n", [x_prev, x, a, params, tau],
-                          inner_n(x, a, beta(h(x_prev), params, tau - ocp.step), params, tau))
 
     # Whole horizon.
     X0 = ca.MX.sym("x0", nx)
@@ -126,11 +123,13 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
     A = ca.MX.sym("A", na, n + 1)
     P = ca.MX.sym("p", params.shape[0])
     out0 = stage0(X0, A[:, 0], U[:, 0], P)
-    mid = stage.map(n - 1, "serial")
-    xprev = ca.horzcat(X0, X[:, : n - 2])
+    # Stages 1..N−1 in turn, each s_j the β(y_{j−1}) of the stage before (stage 0's from φ_0).
+    mid = stage.mapaccum("mid", n - 1, [0], [0])
     times = ca.DM(np.arange(1, n) * ocp.step).T  # τ_j = j·h of stages 1..N−1
-    outm = mid(xprev, X[:, : n - 1], A[:, 1:n], U[:, 1:], P, times)
-    outn = stage_n(X[:, n - 2], X[:, n - 1], A[:, n], P, n * ocp.step)
+    outm = mid(out0[-1][nx + na:], X[:, : n - 1], A[:, 1:n], U[:, 1:], ca.repmat(P, 1, n - 1),
+               times)
+    outn = stage_n(X[:, n - 1], A[:, n], outm[0][:, n - 2], P, n * ocp.step)
+    outm = outm[1:]
     cost = out0[0] + ca.sum2(outm[0]) + outn[0]
     # Gap residuals φ(z_j, u_j) − z_{j+1}. The iterate's s_{j+1} is always β(y_j) itself (it
     # is never stored, only recomputed), so the s part of every gap is exactly zero.

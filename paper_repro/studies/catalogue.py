@@ -292,14 +292,13 @@ def moving_obstacles(quick: bool = False, scenes: int | None = None,
     moves at the vehicle the full Gauss-Newton steps fall into a period-2 oscillation of the
     thrusts between their bounds that the converged controller (IPOPT) does not show, and the
     damped iteration stays within millimetres of IPOPT there (``benchmarks/fidelity.py``).
-    Its QPs go to the ``"riccati-ipm"`` chain (``solver.qp_solver``): where a moving region
-    sweeps the active set faster than the active-set method follows, the interior point on
-    the same Riccati kernels solves them exactly within the sampling time, where the default
-    chain's fallback (HPIPM) returns approximate solutions after up to 10 ms
+    Its QPs go to the default ``"riccati-ipm"`` chain (``solver.qp_solver``): where a moving
+    region sweeps the active set faster than the active-set method follows, the interior point
+    on the same Riccati kernels solves them exactly within the sampling time, where the
+    ``"riccati"`` chain's fallback (HPIPM) returns approximate solutions after up to 10 ms
     (``benchmarks/swept_pillar.py``)."""
     n, base, steps = _passages(quick, scenes, 50, base)
-    base = dataclasses.replace(base, solver=dataclasses.replace(
-        base.solver, line_search=True, qp_solver="riccati-ipm"))
+    base = dataclasses.replace(base, solver=dataclasses.replace(base.solver, line_search=True))
     specs = []
     for barrier, predictions in (("paper", PREDICTIONS), ("design", PREDICTIONS[1:])):
         for prediction in predictions:
