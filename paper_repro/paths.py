@@ -67,3 +67,12 @@ def tuning_dir(quick: bool = False) -> Path:
 def golden_dir() -> Path:
     """``figures/golden/``: the committed golden flights and ``golden.json``."""
     return figures_dir() / "golden"
+
+
+def atomic_text(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file renamed over it: a reader never
+    sees half a file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)

@@ -48,7 +48,7 @@ import numpy as np
 
 from paper_repro import paths
 from paper_repro.evidence.sets import EVIDENCE_SETS
-from paper_repro.paths import golden_dir
+from paper_repro.paths import atomic_text, golden_dir
 
 POSITION_TOLERANCE = 1e-9
 """m: the largest position difference between a flight and its committed golden copy that
@@ -440,15 +440,6 @@ def _atomic_save(path: Path, array: np.ndarray) -> None:
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     with open(tmp, "wb") as fh:
         np.save(fh, np.ascontiguousarray(array, dtype="<f8"))
-    os.replace(tmp, path)
-
-
-def atomic_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file renamed over it: a reader never
-    sees half a file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text)
     os.replace(tmp, path)
 
 

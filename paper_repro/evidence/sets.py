@@ -14,6 +14,8 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+from paper_repro.paths import atomic_text
+
 LEVERS = ("none reaction-0.5s reaction-1s reaction-2s h-0.03s d_min-2 d_min-3 "
           "d_min-2+reaction-0.5s sweep-0.5s sweep-1s moving-d_min-3 moving-d_min-3+sweep-0.5s "
           "moving-d_min-3+sweep-1s lookahead-3s lookahead-5s moving-d_min-3+lookahead-4s "
@@ -129,7 +131,6 @@ def record_wall_time(folder: Path, seconds: float) -> bool:
     for a set whose command does not record it itself (the benchmark scripts that fly outside
     the study engine). A ``timings.json`` the command wrote is left as it is; one this function
     wrote before is replaced. Returns whether it wrote."""
-    from paper_repro.evidence.golden import atomic_text
     from paper_repro.sim.result import run_metadata
 
     if not (isinstance(seconds, (int, float)) and seconds >= 0):
