@@ -7,12 +7,15 @@ from __future__ import annotations
 import json
 import re
 import shlex
+import subprocess
+import sys
 
 import pytest
 
 from paper_repro import paths
 from paper_repro.cli.parser import main as cli
 from paper_repro.evidence import regenerate as R
+from paper_repro.evidence.golden import process_wall_time, stamp
 from paper_repro.evidence.sets import (
     EVIDENCE_SETS,
     RECORDED_BY,
@@ -144,6 +147,27 @@ def test_a_set_that_records_no_wall_time_gets_the_measured_one(tmp_path):
     assert not record_wall_time(own, 1.0)  # the command's own record stays
     with pytest.raises(ValueError, match="seconds"):
         record_wall_time(own, -1.0)
+
+
+def test_a_set_made_by_hand_records_its_own_wall_time(tmp_path):
+    """A set made by hand shows its own run, not the last regeneration's: its stamp records
+    the time its process has run, and leaves a command's own ``timings.json`` alone."""
+    bare, own = tmp_path / "bare", tmp_path / "own"
+    bare.mkdir()
+    own.mkdir()
+    (own / "timings.json").write_text(json.dumps({"wall_time_s": 7.0}))
+    for folder in (bare, own):
+        stamp(folder, "python benchmarks/a_benchmark.py --save")
+    record = json.loads((bare / "timings.json").read_text())
+    assert record["recorded_by"] == RECORDED_BY and "machine" in record["meta"]
+    assert 0 < record["wall_time_s"] <= process_wall_time()  # the process's time so far
+    assert json.loads((own / "timings.json").read_text()) == {"wall_time_s": 7.0}
+    # The process's wall time counts from its start: a process that slept 1 s has run >= 1 s.
+    slept = subprocess.run(
+        [sys.executable, "-c", "import time; time.sleep(1.0); from paper_repro.evidence."
+         "golden import process_wall_time as p; print(p())"],
+        capture_output=True, text=True, check=True)
+    assert 1.0 <= float(slept.stdout) < 120
 
 
 def test_a_failure_skips_what_reads_it_and_nothing_else(tmp_path):

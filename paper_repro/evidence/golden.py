@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from paper_repro import paths
-from paper_repro.evidence.sets import EVIDENCE_SETS
+from paper_repro.evidence.sets import EVIDENCE_SETS, record_wall_time
 from paper_repro.paths import atomic_text, golden_dir
 
 POSITION_TOLERANCE = 1e-9
@@ -348,14 +348,30 @@ def _layer_files(files: dict, layer: str) -> dict:
 def stamp(folder, made_by: str, layer: str = "") -> Path:
     """Write ``folder/evidence.json``: the golden hash of ``layer`` (:func:`layer_of`: the
     layers the set's runs use) the set was made with, and the command that made it. Call it
-    last, after every file of the set is written."""
+    last, after every file of the set is written. A set whose command records no wall time
+    gets the time this process has run (:func:`~paper_repro.evidence.sets.record_wall_time`),
+    so the contributor page shows the last run, by hand or by ``regenerate``."""
     out = Path(folder) / "evidence.json"
     record = {"golden": golden_hash(layer), "made_by": made_by}
     if layer:
         record["layer"] = layer
     text = json.dumps(record, indent=1) + "\n"
     atomic_text(out, text)
+    seconds = process_wall_time()
+    if seconds is not None:
+        record_wall_time(Path(folder), seconds)
     return out
+
+
+def process_wall_time() -> float | None:
+    """s since this process started, from Linux's ``/proc`` (to its clock tick, 10 ms);
+    ``None`` where it cannot be read."""
+    try:
+        fields = Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()
+        started = int(fields[19]) / os.sysconf("SC_CLK_TCK")  # field 22: starttime, ticks
+        return max(float(Path("/proc/uptime").read_text().split()[0]) - started, 0.0)
+    except (OSError, ValueError, IndexError):
+        return None
 
 
 def command_line() -> str:

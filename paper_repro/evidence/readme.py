@@ -154,7 +154,9 @@ def swept_pillar() -> str:
     folder = paths.figures_dir() / "solver_speed" / "swept_pillar"
     table = pd.read_csv(folder / "pillar.csv").merge(pd.read_csv(folder / "tails.csv"),
                                                      on="variant")
-    rows = [[r.variant, fmt.ms(r.median_ms), fmt.ms(r.p99_ms), fmt.ms(r.max_ms),
+    def tail(x):  # to 0.01 ms below T_s: the goal, p99 <= 2 ms, is read against them
+        return fmt.ms(x) if x >= 10 else f"{x:.2f}"
+    rows = [[r.variant, fmt.ms(r.median_ms), tail(r.p99_ms), tail(r.max_ms),
              f"{r.over_ts:,} of {r.steps:,}", f"{r.ipm_qps:,}", f"{r.hpipm_qps:,}",
              f"{r.min_clearance_m:.3f} m"] for r in table.itertuples()]
     return fmt.markdown_table(["variant", "median ms", "p99 ms", "max ms", "calls over T_s",
@@ -263,10 +265,19 @@ def throughput() -> str:
     rows = [[r.family, "smoothed D" if r.metric == "smooth" else "Euclidean ½d²", f"{r.runs}",
              f"{r.steps:,}", f"{r.steps_per_s:,.0f}", f"{r.all_in_ms:.3f}",
              f"{r.median_ms:.2f} / {r.p99_ms:.2f} / {r.p999_ms:.2f} / {r.max_ms:.1f}",
-             f"{r.over_ts:,} of {r.steps:,}"] for r in fam.itertuples()]
+             f"{r.over_ts:,} of {r.steps:,}", f"{r.least_p999_ms:.2f} / {r.least_max_ms:.1f}",
+             f"{r.least_over_ts:,}"] for r in fam.itertuples()]
+    passes = int(fam["passes"].iloc[0])
     out = fmt.markdown_table(["scene family", "metric", "runs", "steps", "all-in steps/s",
-                          "ms per step", "controller call, median / p99 / p99.9 / max ms",
-                          "calls over T_s"], rows)
+                              "ms per step", "controller call, median / p99 / p99.9 / max ms",
+                              "calls over T_s",
+                              f"least of {passes} passes: p99.9 / max ms", "calls over T_s"],
+                             rows)
+    out += (f"\n\nEach scene is flown {passes} times; the steps are one pass's, the speeds "
+            "all passes'. The controller call's times are wall-clock (`solve_time`) in the "
+            "first pass; the last two columns take each call's least time over the passes. "
+            "The passes fly bit for bit alike and make the same calls, so a call slow in one "
+            "pass only was slowed by the shared machine, not by the controller.")
     one = par.loc["1 worker"]
     both = par[par.index.str.endswith("together")].iloc[0]
     out += (f"\n\nThe paper mission, {one.steps:,} steps on one core: {one.steps_per_s:,.0f} "

@@ -121,16 +121,19 @@ def last_wall_time_s(folder: Path) -> float | None:
     return data.get("wall_time_s", data.get("wall_time_s_last_call")) or None
 
 
-RECORDED_BY = "python -m paper_repro regenerate"
+RECORDED_BY = "paper_repro.evidence.sets.record_wall_time"
 """What :func:`record_wall_time` writes in the ``timings.json`` it owns."""
 
 
 def record_wall_time(folder: Path, seconds: float) -> bool:
     """Record in ``folder/timings.json`` that the command that made the set took ``seconds``
-    (s, its wall time as the regeneration measured it), with the versions, commit and machine,
-    for a set whose command does not record it itself (the benchmark scripts that fly outside
-    the study engine). A ``timings.json`` the command wrote is left as it is; one this function
-    wrote before is replaced. Returns whether it wrote."""
+    (s, its wall time), with the versions, commit and machine, for a set whose command does
+    not record it itself (the benchmark scripts that fly outside the study engine). The
+    command's stamp (:func:`~paper_repro.evidence.golden.stamp`) records the time its process
+    ran until then, so a set made by hand shows its own run; the regeneration then replaces
+    it with the command's whole run as it measured it. A ``timings.json`` the command wrote
+    is left as it is; one this function wrote before is replaced. Returns whether it
+    wrote."""
     from paper_repro.sim.result import run_metadata
 
     if not (isinstance(seconds, (int, float)) and seconds >= 0):
