@@ -225,6 +225,30 @@ def test_qp_layout_matches_the_dense_qp(qp_solver):
     assert chain.counts[qp_solver] == 1 and chain.counts["failed"] == 0
 
 
+def test_the_chain_reports_the_interior_points_iterations_of_its_last_qp():
+    """``last_ipm_iterations``: the interior point's iterations in the last QP, 0 when the
+    active-set method solved it alone. Clipping every input at half its unbounded value
+    moves more bounds than a budget of one factorisation allows (the interior point takes
+    the QP, which stays feasible with one terminal row); the same QP with loose bounds is
+    the active set's from a reset."""
+    layout = QPLayout(horizon=6, nx=3, nu=2, na=2, ns=1, nc=1)
+    h, q, j, gap, eq = _random_blocks(layout, np.random.default_rng(3))
+    chain = QPChain(layout, "riccati-ipm")
+    chain.budget = 1
+    big = np.full(layout.nw, 1e3)
+    free = chain.solve(h, q, j, gap, eq, -big, big)
+    lb, ub = -big.copy(), big.copy()
+    half = 0.5 * np.abs(free[layout.iu])
+    lb[layout.iu], ub[layout.iu] = -half, half
+    clipped = chain.solve(h, q, j, gap, eq, lb, ub)
+    assert chain.counts["ipm"] == 1 and chain.last_ipm_iterations >= 1
+    assert np.all(np.abs(clipped[layout.iu]) <= half + 1e-9)
+    assert np.any(np.isclose(np.abs(clipped[layout.iu]), half))  # bounds hold with equality
+    chain.reset()
+    chain.solve(h, q, j, gap, eq, -big, big)
+    assert chain.counts["riccati"] == 2 and chain.last_ipm_iterations == 0
+
+
 def test_qp_layout_places_every_variable_once():
     layout = QPLayout(horizon=5, nx=4, nu=2, na=3, ns=2, nc=4)
     used = np.concatenate([layout.ix.ravel(), layout.iu.ravel(), layout.ia.ravel()])

@@ -278,6 +278,8 @@ class QPChain:
     ----------
     counts : QPs solved by ``riccati``, by ``ipm``, by ``hpipm`` (chosen or as fallback), and
         ``failed``.
+    last_ipm_iterations : the interior point's iterations in the last :meth:`solve_bound`
+        (0 when it did not run): what an instant's QP cost, for the benchmarks.
     """
 
     def __init__(self, layout: QPLayout, qp_solver: str = "riccati-ipm"):
@@ -302,6 +304,7 @@ class QPChain:
         # column-major order of their sparsity (a fixed permutation of the sources).
         self._h_sp, self._a_sp, self._h_of, self._a_of = h_sp, a_sp, hs, asrc
         self.counts = {"riccati": 0, "hpipm": 0, "failed": 0}
+        self.last_ipm_iterations = 0
         if self.budget is not None:
             self.counts["ipm"] = 0
 
@@ -326,6 +329,7 @@ class QPChain:
         """:meth:`solve` on the current contents of a bound QP's arrays."""
         dw = None
         riccati = bound.riccati
+        self.last_ipm_iterations = 0
         if riccati is not None:
             np.negative(bound.arrays[4], out=bound.d)
             if not self._interior_next:
@@ -336,6 +340,7 @@ class QPChain:
             if dw is None and self.budget is not None:
                 before = self.riccati.active.copy()
                 ipm = riccati.interior_point()
+                self.last_ipm_iterations = ipm.iterations
                 if ipm.success:
                     dw = ipm.z
                     self.counts["ipm"] += 1
