@@ -49,6 +49,8 @@
  * a chain of multiply-adds); 1.3x on the crossing's QPs. */
 #define UNROLL _Pragma("GCC unroll 32")
 #define INSTANCE static __attribute__((noinline))
+/* A loop whose arrays do not overlap (see stage_qp_ipm). */
+#define IVDEP _Pragma("GCC ivdep")
 
 /* Multiply-adds are fused explicitly. Left to itself the compiler fuses a*b + c in some
  * loops and not in others (not in sums it vectorises in order, nor in some masked vector
@@ -986,6 +988,10 @@ int stage_qp_ipm(int n, const int *nx, const int *nu, const double *h, const dou
     memset(st, 0, sizeof(*st));
     double *g = pr.g, *dg = pr.dg;
     signed char *hl = (signed char *)pr.fact_act;  /* which sides are bounded */
+    /* The element-wise loops below (IVDEP) read and write arrays that never overlap, all
+     * carved from the workspace, which the compiler cannot prove: told so, it vectorises
+     * them. Each entry's arithmetic is the same, so the iterates are the same bit for bit
+     * (the loops that sum or compare in order stay as they are). */
     int m = 0;
     for (int i = 0; i < nw; ++i) {
         int a = isfinite(lb[i]), bb = isfinite(ub[i]);
@@ -1057,6 +1063,7 @@ int stage_qp_ipm(int n, const int *nx, const int *nu, const double *h, const dou
         if (it >= max_iter || merit > 1e6 * best) break;
         st->iter = it + 1;
         /* factorise H + Sigma, Sigma = lam_l / s_l + lam_u / s_u */
+        IVDEP
         for (int i = 0; i < nw; ++i) {
             isl[i] = 1.0 / sl[i];
             isu[i] = 1.0 / su[i];
@@ -1072,10 +1079,12 @@ int stage_qp_ipm(int n, const int *nx, const int *nu, const double *h, const dou
          * residual that the solution carries in its weakly determined entries) */
         double alpha = 1.0;
         for (int pass = 0; pass < 2; ++pass) {
+            IVDEP
             for (int i = 0; i < nw; ++i)
                 g[i] = q[i] - ll[i] * isl[i] * (lo[i] + sl[i]) - lu[i] * isu[i] * (up[i] - su[i])
                        - tl[i] * isl[i] + tu[i] * isu[i];
             solve_terminal(&pr, &tm, g, zn);
+            IVDEP
             for (int i = 0; i < nw; ++i) {  /* (an unbounded side: all 0, as its lam) */
                 double dz = zn[i] - z[i];
                 dsl[i] = hasl[i] * (dz + (z[i] - lo[i] - sl[i]));
@@ -1112,6 +1121,7 @@ int stage_qp_ipm(int n, const int *nx, const int *nu, const double *h, const dou
                 alpha = MIN(1.0, IPM_TAU * amax);
             }
         }
+        IVDEP
         for (int i = 0; i < nw; ++i) {
             z[i] += alpha * (zn[i] - z[i]);
             sl[i] += alpha * dsl[i];
