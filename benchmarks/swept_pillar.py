@@ -24,6 +24,7 @@ import dataclasses
 
 import numpy as np
 import pandas as pd
+from _passes import PASSES, fly_passes  # benchmarks/_passes.py (the script's folder)
 
 from paper_repro import Config, make_controller, paths, simulate
 from paper_repro.evidence.golden import layer_of, stamp
@@ -35,8 +36,6 @@ from paper_repro.world.shapes import Box
 START = (0.0, 0.0, 3.0)
 SPEED = 1.0
 MEETING_TIME = 6.0
-PASSES = 2
-"""Flights of each variant: the least of a call's times over them is its own cost."""
 
 
 def pillar_scene() -> Scene:
@@ -78,18 +77,17 @@ class _Counting:
 def _fly(cfg, scene) -> dict:
     """One variant's row: its flight, :data:`PASSES` times with one controller."""
     controller = make_controller(cfg)
-    passes = []
-    for _ in range(PASSES):
+    counted = []
+
+    def fly():
         controller.reset()
-        counting = _Counting(controller)
-        result = simulate(cfg, scene=scene, controller=counting, progress=False)
-        passes.append((1e3 * np.asarray(result.solve_time, float), result, counting))
-    if any(not np.array_equal(r.x, passes[0][1].x) for _, r, _ in passes):
-        raise RuntimeError("the passes flew differently; their calls cannot be compared")
-    ms, result, counting = passes[0]
-    least = np.minimum.reduce([t for t, _, _ in passes])
+        counted.append(_Counting(controller))
+        return simulate(cfg, scene=scene, controller=counted[-1], progress=False)
+
+    (result, *_), least = fly_passes(fly, PASSES)
+    ms = 1e3 * np.asarray(result.solve_time, float)
     ts_ms = 1e3 * cfg.nmpc.ts
-    iterations = np.asarray(counting.ipm_iterations)
+    iterations = np.asarray(counted[0].ipm_iterations)
     iterations = iterations[iterations > 0]
     counts = result.meta.get("qp_counts", {})
     return {"steps": result.steps, "passes": PASSES,

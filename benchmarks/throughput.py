@@ -57,6 +57,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from _passes import PASSES, fly_passes  # noqa: E402  benchmarks/_passes.py (the script's folder)
 
 from paper_repro import Config
 from paper_repro.paths import figures_dir
@@ -66,8 +67,6 @@ from paper_repro.solvers.factory import make_controller
 from paper_repro.vehicles.quadrotor import quadrotor_model
 
 WARMUP_STEPS = 50
-PASSES = 2
-"""Flights of each scene of a family (see :func:`_fly_family`)."""
 
 
 def main() -> None:
@@ -170,26 +169,21 @@ def main() -> None:
 
 def _fly_family(family: str, metric: str, specs) -> dict:
     """Fly ``specs`` (RunSpecs of one configuration but the scene) in this process with one
-    controller, reset before each flight, :data:`PASSES` times over; the row of the families
-    table. The flights are deterministic (a reset controller flies bit for bit as a new one),
-    so every pass makes the same calls: the least of a call's times over the passes is its own
-    cost, and a call slow in one pass only was slowed by the machine."""
+    controller, reset before each flight, :data:`PASSES` times over (``_passes``); the row of
+    the families table."""
     ctl = _warm_controller(specs[0].config)
     steps, wall, first, least = 0, 0.0, [], []
     for spec in specs:
-        passes = []
-        for _ in range(PASSES):
+        def fly(spec=spec):
             ctl.reset()
-            t0 = time.perf_counter()
-            r = simulate(spec.config, controller=ctl, max_steps=spec.max_steps, progress=False)
-            wall += r.meta.get("wall_time_s", time.perf_counter() - t0)
-            steps += r.steps
-            passes.append((np.asarray(r.solve_time) * 1e3, r.x))
-        if any(not np.array_equal(x, passes[0][1]) for _, x in passes):
-            raise RuntimeError(f"{spec.name}: the passes flew differently; their calls cannot "
-                               "be compared")
-        first.append(passes[0][0])
-        least.append(np.minimum.reduce([ms for ms, _ in passes]))
+            return simulate(spec.config, controller=ctl, max_steps=spec.max_steps,
+                            progress=False)
+
+        results, floor = fly_passes(fly, PASSES, spec.name)
+        steps += sum(r.steps for r in results)
+        wall += sum(r.meta["wall_time_s"] for r in results)
+        first.append(1e3 * np.asarray(results[0].solve_time, float))
+        least.append(floor)
     ms, floor = np.concatenate(first), np.concatenate(least)
     ts_ms = specs[0].config.nmpc.ts * 1e3
     return {"family": family, "metric": metric, "runs": len(specs), "steps": len(ms),
