@@ -48,7 +48,7 @@ import pandas as pd  # noqa: E402
 
 PARTS = (  # (part, test on the frames of one sample: its stack, root first)
     ("LiDAR", lambda f: _has(f, "Lidar.scan")),
-    ("plant", lambda f: _has(f, "Plant.step")),
+    ("plant", lambda f: _has(f, "QuadrotorPlant.step")),
     ("clearance", lambda f: _has(f, "_TrueClearance.along")),
     ("logging", lambda f: _has(f, "_Log.record")),
     ("QP (C)", lambda f: _last_ours(f).startswith("StageQP._solve") and _line(f) == _QP_LINE),
@@ -170,7 +170,7 @@ def profile(steps: int) -> tuple[pd.DataFrame, dict]:
 def floors(repeats: int = 2000) -> pd.DataFrame:
     """ms per call of each compiled part, repeated on the inputs of one step in view."""
     from paper_repro import Config, Lidar, make_scene
-    from paper_repro.sim.plant import Plant
+    from paper_repro.sim.plant import QuadrotorPlant
     from paper_repro.solvers.factory import make_controller
 
     cfg = Config()
@@ -208,7 +208,7 @@ def floors(repeats: int = 2000) -> pd.DataFrame:
     h, q, j, gap, eq, lb, ub = qp_args
     ab, c, d = np.ascontiguousarray(j[:n_ab]), np.ascontiguousarray(j[n_ab:]), -eq
     riccati = ctl.qp.riccati
-    plant = Plant(cfg.quadrotor, cfg.nmpc.ts)
+    plant = QuadrotorPlant(cfg.quadrotor, cfg.nmpc.ts)
     rows = [
         ("linearisation (C)", per_call(rung.linearisation),
          f"capacity {rung.scan.capacity} points per region, {sum(len(v) for v in visible)} "

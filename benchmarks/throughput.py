@@ -62,7 +62,7 @@ from _passes import PASSES, fly_passes  # noqa: E402  benchmarks/_passes.py (the
 from paper_repro import Config
 from paper_repro.paths import figures_dir
 from paper_repro.sim.loop import simulate
-from paper_repro.sim.plant import Plant, plant_for
+from paper_repro.sim.plant import QuadrotorPlant, plant_for
 from paper_repro.solvers.factory import make_controller
 from paper_repro.vehicles.quadrotor import quadrotor_model
 
@@ -91,7 +91,7 @@ def main() -> None:
 
     cfg = _config(args.scenario)
     ctl = _warm_controller(cfg)  # also fills the compile caches the workers will load from
-    Plant(cfg.quadrotor, cfg.nmpc.ts)
+    QuadrotorPlant(cfg.quadrotor, cfg.nmpc.ts)
 
     t0, c0 = time.perf_counter(), time.process_time()
     result = simulate(cfg, controller=ctl, max_steps=args.steps, progress=False)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from paper_repro import BarrierParams, Config, NMPCParams, simulate
+from paper_repro.sim.loop import Faults
 from paper_repro.solvers.factory import make_controller
 from paper_repro.vehicles.base import Equilibria, VehicleModel
 from paper_repro.world.scene import Region, Scene
@@ -100,3 +101,72 @@ def test_its_plant_is_its_own_dynamics():
     x = plant.step(np.zeros(6), [1.0, 0.0, -1.0])
     np.testing.assert_allclose(x, [0.5 * 0.05**2, 0, -0.5 * 0.05**2, 0.05, 0, -0.05],
                                atol=1e-15)
+
+
+class ExactPlant:
+    """A plant written here: the double integrator's exact flow under zero-order hold
+    (p + v·T_s + ½·a·T_s², v + a·T_s), counting its resets and steps."""
+
+    def __init__(self, ts: float):
+        self.ts, self.resets, self.steps = ts, [], 0
+
+    def reset(self, x0):
+        self.resets.append(np.array(x0))
+
+    def step(self, x, u):
+        self.steps += 1
+        p, v, a = x[:3], x[3:], np.asarray(u, float)
+        return np.concatenate([p + v * self.ts + 0.5 * a * self.ts**2, v + a * self.ts])
+
+
+class BiasedSensorPlant(ExactPlant):
+    """The same flow, measured with a fixed position bias (m)."""
+
+    def __init__(self, ts: float, bias):
+        super().__init__(ts)
+        self.bias = np.concatenate([bias, np.zeros(3)])
+
+    def measure(self, x):
+        return x + self.bias
+
+
+def test_a_plant_written_here_flies_the_loop(flights):
+    """RK4 integrates a double integrator under a constant input exactly, so the plant
+    written here flies the loop as the default plant does, to rounding; the loop resets it
+    once, at the start, and steps it once per instant."""
+    plant = ExactPlant(CONFIG.nmpc.ts)
+    run = simulate(CONFIG, make_controller(CONFIG, point_mass()), max_steps=160,
+                   progress=False, scene=SCENE, plant=plant)
+    assert len(plant.resets) == 1 and plant.steps == len(run.t)
+    np.testing.assert_array_equal(plant.resets[0], run.x[0])
+    assert run.outcome == flights["rti"].outcome and len(run.t) == len(flights["rti"].t)
+    np.testing.assert_allclose(run.x, flights["rti"].x, rtol=0, atol=1e-9)
+
+
+def test_the_controller_is_given_what_the_plant_measured():
+    """With a position bias b in the measurement, the controller brings the *measured*
+    position to the target: the vehicle itself comes to rest at y_t − b."""
+    bias = np.array([0.4, -0.2, 0.1])
+    open_scene = Scene("open", (), start=(0.0, 0.0, 2.0), targets=((2.0, 0.0, 2.0),))
+    plant = BiasedSensorPlant(CONFIG.nmpc.ts, bias)
+    run = simulate(CONFIG, make_controller(CONFIG, point_mass()), max_steps=300,
+                   progress=False, scene=open_scene, plant=plant)
+    np.testing.assert_allclose(run.x[-1, :3], np.array([2.0, 0.0, 2.0]) - bias, atol=0.02)
+    assert np.abs(run.x[-1, 3:]).max() < 0.02  # at rest there
+
+
+def test_faults_act_on_what_the_plant_measured():
+    """A state fault sees the plant's measurement, not the true state: the bias is there."""
+    bias = np.array([0.4, 0.0, 0.0])
+    seen = []
+    faults = Faults(state=lambda k, x: seen.append(x.copy()) or x)
+    plant = BiasedSensorPlant(CONFIG.nmpc.ts, bias)
+    run = simulate(CONFIG, make_controller(CONFIG, point_mass()), max_steps=3,
+                   progress=False, scene=SCENE, plant=plant, faults=faults)
+    np.testing.assert_allclose(np.array(seen) - run.x[:3], np.tile(plant.bias, (3, 1)),
+                               atol=1e-15)
+
+
+def test_an_object_without_a_step_is_refused_as_a_plant():
+    with pytest.raises(ValueError, match="^plant must have a step"):
+        simulate(CONFIG, model=point_mass(), scene=SCENE, max_steps=1, plant=object())

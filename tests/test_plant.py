@@ -7,7 +7,7 @@ from scipy.integrate import solve_ivp
 from paper_repro._native import compiler
 from paper_repro.config import QuadrotorParams
 from paper_repro.sim import plant as plant_module
-from paper_repro.sim.plant import Plant
+from paper_repro.sim.plant import QuadrotorPlant
 from paper_repro.vehicles.quadrotor import continuous_dynamics, equilibrium, plant_step
 
 needs_compiler = pytest.mark.skipif(compiler() is None, reason="no C compiler")
@@ -30,10 +30,10 @@ def aggressive_inputs(steps: int = 100) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def compiled() -> Plant:
+def compiled() -> QuadrotorPlant:
     if compiler() is None:
         pytest.skip("no C compiler")
-    return Plant(ts=TS)
+    return QuadrotorPlant(ts=TS)
 
 
 @needs_compiler
@@ -89,7 +89,7 @@ def test_step_returns_a_new_array_and_leaves_its_arguments_alone(compiled):
 def test_other_parameters_give_another_plant():
     heavy = QuadrotorParams(mass=3.0)
     x, u = equilibrium([0.0, 0.0, 1.0])  # hover thrust of the default mass
-    x_heavy = Plant(heavy, ts=TS).step(x, u)
+    x_heavy = QuadrotorPlant(heavy, ts=TS).step(x, u)
     np.testing.assert_allclose(x_heavy, plant_step(x, u, TS, heavy), atol=1e-12)
     assert x_heavy[8] < -1e-3  # too little thrust for 3 kg: it sinks
 
@@ -98,9 +98,9 @@ def test_other_parameters_give_another_plant():
 def test_without_the_compiled_integrator_it_falls_back_on_solve_ivp(how, monkeypatch):
     if how == "no compiler":
         monkeypatch.setattr(plant_module, "compiler", lambda: None)
-        fallback = Plant(ts=TS)
+        fallback = QuadrotorPlant(ts=TS)
     else:
-        fallback = Plant(ts=TS, compile=False)
+        fallback = QuadrotorPlant(ts=TS, compile=False)
     assert not fallback.native
     x, _ = equilibrium([0.5, 0.0, 2.0], 0.1)
     for u in aggressive_inputs(5):
@@ -119,7 +119,7 @@ def test_without_the_compiled_integrator_it_falls_back_on_solve_ivp(how, monkeyp
 ])
 def test_bad_states_and_inputs_are_rejected_by_name(compile, name, x, u):
     with pytest.raises(ValueError, match=rf"^{name} must"):
-        Plant(ts=TS, compile=compile).step(x, u)
+        QuadrotorPlant(ts=TS, compile=compile).step(x, u)
 
 
 @pytest.mark.parametrize("kwargs, name", [
@@ -130,4 +130,4 @@ def test_bad_states_and_inputs_are_rejected_by_name(compile, name, x, u):
 ])
 def test_bad_settings_are_rejected_by_name(kwargs, name):
     with pytest.raises(ValueError, match=rf"^{name} must"):
-        Plant(**kwargs)
+        QuadrotorPlant(**kwargs)

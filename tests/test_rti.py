@@ -17,7 +17,7 @@ from paper_repro import (
 from paper_repro.analysis.metrics import COLLISION_CLEARANCE
 from paper_repro.problem.scan import check_visible
 from paper_repro.sim.loop import simulate
-from paper_repro.sim.plant import Plant
+from paper_repro.sim.plant import QuadrotorPlant
 from paper_repro.solvers.factory import make_controller
 from paper_repro.solvers.ipopt import TrackingNMPC
 from paper_repro.solvers.rti import CAPACITIES, RealTimeNMPC
@@ -295,7 +295,7 @@ def test_a_state_outside_x_is_flown_back_into_it_where_hard_bounds_had_no_plan(s
     hard.ocp.state_box = lambda x: hard.ocp.state_bounds  # no relaxation
     assert hard.solve(x0, target, ()).status == "qp_failed"
 
-    plant = Plant(ocp.config.quadrotor, ts=ocp.config.nmpc.ts)
+    plant = QuadrotorPlant(ocp.config.quadrotor, ts=ocp.config.nmpc.ts)
     lo, hi = ocp.state_bounds
     x, plan, inside = x0, None, []
     for _ in range(100):

@@ -3,14 +3,14 @@
 =================  ==================================================================
 ``loop``           :func:`simulate`, the step loop, and :class:`Faults` to inject
 ``result``         :class:`SimulationResult` (saves itself, becomes a DataFrame)
-``plant``          the quadrotor's plant, RK45 in C (ODE45 in the paper)
+``plant``          what the loop flies (:class:`Plant`); the quadrotor's, RK45 in C
 ``checks``         checks of a mission before it flies, and the hazards it warns of
 =================  ==================================================================
 """
 
 from paper_repro.sim.checks import SetupHazardWarning, check_setup, setup_hazards
 from paper_repro.sim.loop import Faults, simulate
-from paper_repro.sim.plant import ModelPlant, Plant, plant_for
+from paper_repro.sim.plant import ModelPlant, Plant, QuadrotorPlant, plant_for
 from paper_repro.sim.result import (
     FAULT_STATUSES,
     MANIFEST,
@@ -32,6 +32,7 @@ __all__ = [
     "ModelPlant",
     "OUTCOMES",
     "Plant",
+    "QuadrotorPlant",
     "plant_for",
     "RESULT_ARRAYS",
     "run_metadata",

@@ -77,9 +77,12 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
         y = h(x) is what the LiDAR sees from, what keeps clear and what tracks the targets; its
         ``position`` states start at ``scene.start`` (at rest, the other states zero); its
         ``velocity`` states tell a stall. A planar vehicle (p = 2) flies a planar scene.
-    plant : what integrates the vehicle over T_s, an object with ``step(x, u) -> x_next``
-        (default :func:`~paper_repro.sim.plant.plant_for`: the quadrotor's RK45 in C, RK4 of
-        the model's own dynamics for any other vehicle).
+    plant : what the vehicle flies in, any :class:`~paper_repro.sim.plant.Plant`: an object
+        with ``step(x, u) -> x_next`` over T_s, and optionally ``reset(x0)`` (called before
+        the first step) and ``measure(x) -> x_measured`` (the state the controller is given;
+        :class:`Faults` ``state`` then acts on it). Default
+        :func:`~paper_repro.sim.plant.plant_for`: the quadrotor's RK45 in C, RK4 of the
+        model's own dynamics for any other vehicle.
 
     Before anything is built, :func:`~paper_repro.sim.checks.check_setup` rejects an inconsistent
     mission (``ValueError``) and :func:`~paper_repro.sim.checks.setup_hazards` warns of an unsafe
@@ -120,6 +123,10 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     lidar = Lidar(scene.clouds, cfg.sensor.range, noise=cfg.sensor, motions=scene.motions,
                   dim=scene.dim)
     plant = plant if plant is not None else plant_for(model, cfg)
+    if not callable(getattr(plant, "step", None)):
+        raise ValueError(f"plant must have a step(x, u) -> x_next method, got "
+                         f"{type(plant).__name__}")
+    measure = getattr(plant, "measure", None)
     output = _output_map(model)
     truth = _TrueClearance(scene)
     predict = _predictor(cfg.nmpc.prediction, lidar, ts)
@@ -142,6 +149,8 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     in_a_row, errors, last_good = 0, [], x.copy()
     meta = run_metadata()  # before flying: the commit and versions that produce this run
     meta["hazards"] = hazards
+    if callable(getattr(plant, "reset", None)):
+        plant.reset(x.copy())
     bar = step_progress(sim.max_steps, progress)
     wall = time.perf_counter()
     velocity = np.array(model.velocity, dtype=np.intp)
@@ -149,7 +158,9 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     for k in range(sim.max_steps):
         target = targets[target_index]
         t = k * ts
-        measured = x if faults is None or faults.state is None else faults.state(k, x.copy())
+        measured = x if measure is None else np.asarray(measure(x.copy()), float)
+        if faults is not None and faults.state is not None:
+            measured = faults.state(k, measured.copy())
         visible = lidar.scan(y, t)
         if faults is not None and faults.scan is not None:
             visible = faults.scan(k, visible)

@@ -1,18 +1,28 @@
-"""The simulated quadrotor: one zero-order-hold interval integrated in compiled C.
+"""The plant: what the closed loop flies, and the plants this package brings.
 
-The paper simulates the plant with MATLAB's ODE45;
-:func:`paper_repro.vehicles.quadrotor.plant_step` does
-it with ``solve_ivp`` (RK45, the same Dormand–Prince 5(4) pair). That costs about 0.2–0.3 ms
-per sampling interval, nearly all of it Python: eight calls of the right-hand side and the
-solver's bookkeeping. :class:`Plant` runs the same method in C: the right-hand side is
-:func:`paper_repro.vehicles.quadrotor.symbolic_dynamics` generated as C by CasADi, and the
-integration loop
-(``_plant_dp45.c``) replicates scipy's RK45 step control — initial step selection, RMS error
-norm, safety factor 0.9, step factors within [0.2, 10], the last step cut to end at t = T_s —
-so both take the same steps and agree to rounding (about 1e-12 over a second of flight).
+:class:`Plant` is the interface. Anything with ``step(x, u) -> x_next`` is a plant:
+:func:`~paper_repro.sim.loop.simulate` holds u over T_s and asks the plant where the vehicle
+is one sampling interval later. A plant may also have ``reset(x0)``, called once before the
+first step (a plant with states of its own, such as rotor speeds or a wind field, starts
+them there), and ``measure(x) -> x_measured``, the state the controller is given at an
+instant (an estimate with noise or latency); without it the controller is given the true
+state. A plant from another simulator is an object of a few lines around its step function.
 
-Without a C compiler (or with ``compile=False``) :class:`Plant` falls back on
-:func:`~paper_repro.vehicles.quadrotor.plant_step`: same results, slower.
+Two plants come with the package:
+
+* :class:`QuadrotorPlant`, the quadrotor of Table I. The paper simulates it with MATLAB's
+  ODE45; :func:`paper_repro.vehicles.quadrotor.plant_step` does it with ``solve_ivp`` (RK45,
+  the same Dormand–Prince 5(4) pair). That costs about 0.2–0.3 ms per sampling interval,
+  nearly all of it Python: eight calls of the right-hand side and the solver's bookkeeping.
+  :class:`QuadrotorPlant` runs the same method in C: the right-hand side is
+  :func:`paper_repro.vehicles.quadrotor.symbolic_dynamics` generated as C by CasADi, and the
+  integration loop (``_plant_dp45.c``) replicates scipy's RK45 step control — initial step
+  selection, RMS error norm, safety factor 0.9, step factors within [0.2, 10], the last step
+  cut to end at t = T_s — so both take the same steps and agree to rounding (about 1e-12
+  over a second of flight). Without a C compiler (or with ``compile=False``) it falls back on
+  :func:`~paper_repro.vehicles.quadrotor.plant_step`: same results, slower.
+* :class:`ModelPlant`, any :class:`~paper_repro.vehicles.base.VehicleModel`'s own dynamics
+  integrated by RK4.
 """
 
 from __future__ import annotations
@@ -23,6 +33,7 @@ import os
 import tempfile
 from importlib import resources
 from pathlib import Path
+from typing import Protocol, runtime_checkable
 
 import casadi as ca
 import numpy as np
@@ -42,7 +53,24 @@ _EPS = np.finfo(float).eps
 _STATUS = {1: "the step size fell below 10 ulp of t", 2: "the right-hand side failed"}
 
 
-class Plant:
+@runtime_checkable
+class Plant(Protocol):
+    """What :func:`~paper_repro.sim.loop.simulate` flies: an object with a ``step``.
+
+    Optional methods, used when present:
+
+    * ``reset(x0)``: called once before the first step, with the initial state (n_x,).
+    * ``measure(x) -> x_measured``: the state (n_x,) the controller is given when the vehicle
+      is in the true state ``x``; without it the controller is given ``x``.
+    """
+
+    def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The state one sampling interval later: ``x`` (n_x,) the state now, ``u`` (n_u,)
+        the input held over the interval; a new (n_x,) array."""
+        ...
+
+
+class QuadrotorPlant:
     """The quadrotor of Table I integrated over one sampling interval under zero-order hold.
 
     Built once (compiling the C on first use per machine, then loading it from the cache of
@@ -131,13 +159,12 @@ def _library(params: QuadrotorParams) -> ctypes.CDLL:
     return lib
 
 
-
 class ModelPlant:
     """The plant of any :class:`~paper_repro.vehicles.base.VehicleModel`: its own dynamics
     f_c, integrated by RK4 over T_s in ``substeps`` steps under zero-order hold of u.
 
-    ``step(x (n_x,), u (n_u,)) -> x_next (n_x,)``, as :class:`Plant`. A vehicle of your own
-    flies with this unless you give :func:`~paper_repro.sim.loop.simulate` a plant.
+    ``step(x (n_x,), u (n_u,)) -> x_next (n_x,)``, as every :class:`Plant`. A vehicle of
+    your own flies with this unless you give :func:`~paper_repro.sim.loop.simulate` a plant.
     """
 
     def __init__(self, model: VehicleModel, ts: float, substeps: int = 10):
@@ -151,9 +178,9 @@ class ModelPlant:
 
 
 def plant_for(model: VehicleModel, config: Config):
-    """The plant a closed loop flies ``model`` with: the quadrotor's :class:`Plant` (RK45 in
-    C, as the paper's ODE45) for the quadrotor of ``config``; :class:`ModelPlant` for any other
+    """The plant a closed loop flies ``model`` with: :class:`QuadrotorPlant` (RK45 in C, as
+    the paper's ODE45) for the quadrotor of ``config``; :class:`ModelPlant` for any other
     vehicle."""
     if model.name == "quadrotor":
-        return Plant(config.quadrotor, config.nmpc.ts)
+        return QuadrotorPlant(config.quadrotor, config.nmpc.ts)
     return ModelPlant(model, config.nmpc.ts)
