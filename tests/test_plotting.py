@@ -285,6 +285,17 @@ def test_lidar_instants_pick_the_closest_approach(result, scene):
     assert all(np.linalg.norm(a - b) >= r_s for i, a in enumerate(pos) for b in pos[i + 1:])
 
 
+
+@pytest.mark.parametrize("steps", [1, 2, 300, 3001])
+def test_lidar_instants_of_a_cut_flight_index_its_steps(result, scene, steps):
+    """A flight cut after any number of steps (a step limit, an interrupted run): every
+    instant chosen indexes its per-step arrays, whose length is one less than x's."""
+    cut = dataclasses.replace(result, x=result.x[:steps + 1], t=result.t[:steps],
+                              u=result.u[:steps], visible_points=result.visible_points[:steps])
+    chosen = lidar_instants(cut, scene, n=4)
+    assert chosen and all(0 <= k < steps for k in chosen)
+    assert [cut.t[k] for k in chosen] == sorted(cut.t[k] for k in chosen)
+
 def test_a_saved_run_redraws_against_its_own_clouds(result, tmp_path):
     """The scene travels with the result: after save/load the figure's clouds are the
     flown ones, point for point, and the redrawn figure is the same picture, byte for byte."""

@@ -20,9 +20,10 @@ from paper_repro.studies import reproduce as R
 from paper_repro.studies import runs
 
 
-def _fake_result(spec, controller=None, progress=None):
-    """A straight climb from the start with hover thrusts plus a small wobble."""
-    steps = min(spec.max_steps, 200)
+def _fake_result(spec, controller=None, progress=None, steps=None):
+    """A straight climb from the start at 1 m/s with hover thrusts plus a small wobble, of
+    ``steps`` steps (default: the spec's, at most 200)."""
+    steps = min(spec.max_steps, 200) if steps is None else steps
     k = np.arange(steps + 1)
     x = np.zeros((steps + 1, 12))
     x[:, :3] = np.array([22.0, -22.0, 0.0]) + np.outer(k * 0.01, [0.0, 0.0, 1.0])
@@ -243,3 +244,56 @@ def test_reproduce_flies_again_a_damaged_cache_entry(tmp_path, fake_simulation):
     assert len(damaged) == 1 and "result.npz" in damaged[0]
     assert again.simulated == [spec.name]
     assert (npz.parent.parent / f"{npz.parent.name}.damaged").is_dir()
+
+
+def _figures_of(*names):
+    return [f for nb in R.NOTEBOOKS if nb.name in names for f in nb.outputs]
+
+
+@pytest.mark.parametrize("steps", [300])
+def test_a_mission_cut_at_any_step_limit_draws_its_figures(tmp_path, monkeypatch, steps):
+    """A run stopped by a step limit: at 300 steps the climb ends exactly r_s = 3 m above its
+    start, where the last LiDAR sphere would be drawn at the state after the last step."""
+    monkeypatch.setattr(runs, "fly", lambda spec, controller=None, progress=None:
+                        _fake_result(spec, steps=spec.max_steps))
+    kw = dict(quick=True, max_steps=steps, notebooks=["01_flight_3d"],
+              results_dir=tmp_path / "results", figures_dir=tmp_path / "figures",
+              executed_dir=tmp_path / "executed", progress=False, workers=0, log=lambda _: None)
+    R.reproduce(**kw)
+    assert all((tmp_path / "figures" / f).is_file() for f in _figures_of("01_flight_3d"))
+
+
+@pytest.mark.parametrize("stage", ["flights", "notebooks"])
+def test_a_reproduce_interrupted_then_run_again_writes_every_figure(tmp_path, monkeypatch,
+                                                                   stage):
+    """Ctrl-C during the second flight, or during the second notebook: the next run keeps
+    what was finished, makes the rest, and writes every figure of its notebooks."""
+    names = ["01_flight_3d", "05_euclidean"]
+    kw = dict(quick=True, notebooks=names, results_dir=tmp_path / "results",
+              figures_dir=tmp_path / "figures", executed_dir=tmp_path / "executed",
+              progress=False, workers=0, log=lambda _: None)
+    flown, executed = [], []
+    execute = R.execute_notebook
+
+    def fly(spec, controller=None, progress=None):
+        if stage == "flights" and flown:
+            raise KeyboardInterrupt
+        flown.append(spec.name)
+        return _fake_result(spec)
+
+    def interrupted(notebook, output, parameters=None):
+        if executed:
+            raise KeyboardInterrupt
+        executed.append(Path(notebook).stem)
+        return execute(notebook, output, parameters)
+
+    monkeypatch.setattr(runs, "fly", fly)
+    if stage == "notebooks":
+        monkeypatch.setattr(R, "execute_notebook", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        R.reproduce(**kw)
+    monkeypatch.setattr(runs, "fly", _fake_result)
+    monkeypatch.setattr(R, "execute_notebook", execute)
+    second = R.reproduce(**kw)
+    assert second.simulated == ([] if stage == "notebooks" else ["paper-euclidean"])
+    assert all((tmp_path / "figures" / f).is_file() for f in _figures_of(*names))

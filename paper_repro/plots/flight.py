@@ -242,9 +242,11 @@ def plot_input_spectrum(results, cutoff_hz: float = metrics.DEFAULT_CUTOFF_HZ, a
 
 
 def lidar_instants(result, scene, n: int = 4) -> list[int]:
-    """Steps at which to draw the LiDAR sphere: the closest approach to each region the UAV
-    comes within range of, then evenly spaced steps at least r_s apart, ``n`` at most."""
-    pos = result.x[:, :3]
+    """Steps k at which to draw the LiDAR sphere: the closest approach to each region the UAV
+    comes within range of, then evenly spaced steps at least r_s apart, ``n`` at most. Each k
+    indexes the per-step arrays (``result.t[k]``, ``result.visible_points[k]``): the state
+    after the last step, which has no time of its own, is never chosen."""
+    pos = result.x[:len(result.t), :3]
     r_s = result.config.sensor.range
     chosen = []
     for cloud in scene.clouds:
