@@ -186,7 +186,7 @@ def test_a_killed_worker_loses_nothing(tmp_path):
     from distributed import Client, LocalCluster
 
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=":0", silence_logs=40) as cluster, \
+                      dashboard_address="127.0.0.1:0", silence_logs=40) as cluster, \
             Client(cluster) as client:
         pids = list(client.run(os.getpid).values())
         killed = []
@@ -263,7 +263,7 @@ def test_a_run_that_raises_inside_a_worker_is_a_failed_row(tmp_path, monkeypatch
 
     monkeypatch.setattr(runs, "fly", fly)
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
-                      dashboard_address=":0", silence_logs=40) as cluster, \
+                      dashboard_address="127.0.0.1:0", silence_logs=40) as cluster, \
             Client(cluster) as client:
         result = S.run_study(_study(2), out=tmp_path, client=client, progress=False,
                              log=lambda line: None)
@@ -311,3 +311,21 @@ def test_a_worker_builds_each_controller_once(tmp_path):
         assert len(builds) == workers and (builds <= 2).all(), builds
         if workers == 1:
             assert builds.iloc[0] == 2
+
+
+def test_the_embedded_cluster_listens_on_this_machine_only():
+    """Every socket the embedded cluster listens on, its scheduler's, its dashboard's and its
+    worker processes', is bound to the loopback address."""
+    import psutil
+
+    from paper_repro.studies.cluster import LOOPBACK, dask_client
+
+    with dask_client(workers=1, log=lambda line: None) as client:
+        me = psutil.Process()
+        processes = [me, *me.children(recursive=True)]
+        listening = [c.laddr for p in processes for c in p.net_connections(kind="inet")
+                     if c.status == psutil.CONN_LISTEN]
+        assert client.scheduler.address.startswith(f"tcp://{LOOPBACK}:")
+        assert all(w.startswith(f"tcp://{LOOPBACK}:") for w in client.scheduler_info()["workers"])
+    assert len(listening) >= 3  # the scheduler, its dashboard, a worker (and its nanny)
+    assert {a.ip for a in listening} == {LOOPBACK}, listening
