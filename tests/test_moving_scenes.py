@@ -347,14 +347,17 @@ def test_lidar_at_t_is_the_static_scan_of_the_moved_clouds(name, noise, rng):
         np.testing.assert_array_equal(a, b)
 
 
-def test_lidar_velocities_and_validation():
+def test_true_velocities_and_lidar_validation():
+    from paper_repro.world.truth import scene_velocities
+
     scene = make_scene("oncoming")
     lidar = Lidar(scene.clouds, 3.0, motions=scene.motions)
-    (v,) = lidar.velocities(2.0)
+    (v,) = scene_velocities(scene, 2.0)
     np.testing.assert_allclose(v, (-0.5, 0.0, 0.0), atol=1e-15)
     static = make_scene("encounter")
-    assert all(np.array_equal(v, np.zeros(3))
-               for v in Lidar(static.clouds).velocities(3.0))
+    assert all(np.array_equal(v, np.zeros(3)) for v in scene_velocities(static, 3.0))
+    with pytest.raises(ValueError, match="time t"):
+        scene_velocities(scene, math.nan)
     with pytest.raises(ValueError, match="motions"):
         Lidar(scene.clouds, 3.0, motions=(ZIGZAG, ZIGZAG))
     with pytest.raises(ValueError, match="time t"):
@@ -431,10 +434,10 @@ def test_clearance_is_measured_to_the_true_positions(approach_runs):
 
 @pytest.mark.parametrize("moving", [True, False])
 def test_the_clearance_of_a_flight_is_the_brute_force_distance_at_each_step(moving):
-    """``_TrueClearance.along`` (the loop measures every step at once, after the flight): the
+    """``TrueClearance.along`` (the loop measures every step at once, after the flight): the
     distance to the clouds where they are at each time, NaN at a position that is not
     finite (a diverged plant), for a moving scene and a static one."""
-    from paper_repro.sim.loop import _TrueClearance
+    from paper_repro.world.truth import TrueClearance
 
     scene = _approaching_scene()
     if not moving:
@@ -443,7 +446,7 @@ def test_the_clearance_of_a_flight_is_the_brute_force_distance_at_each_step(movi
     y = rng.uniform(-2.0, 8.0, (40, 3))
     y[7] = np.nan
     t = np.linspace(0.0, 4.0, len(y))
-    got = _TrueClearance(scene).along(y, t)
+    got = TrueClearance(scene).along(y, t)
     for k in range(len(y)):
         if k == 7:
             assert np.isnan(got[k])

@@ -1,37 +1,38 @@
-"""The closed loop for any vehicle: LiDAR scan → controller → plant (zero-order hold).
+"""The closed loop for any vehicle: perception → controller → plant (zero-order hold).
 
 The step loop of :func:`simulate` is short on purpose; read it to see exactly what happens at
-each sampling instant. :class:`SimulationResult` saves itself as ``result.npz`` with the full
+each sampling instant. Its parts have modules of their own: what the controller is given
+(:mod:`~paper_repro.sim.perception`), what the vehicle flies in (:mod:`~paper_repro.sim.plant`)
+and when the flight ends (:mod:`~paper_repro.sim.termination`). :class:`SimulationResult` saves itself as ``result.npz`` with the full
 ``config.json`` beside it, and becomes a pandas DataFrame with :meth:`SimulationResult.to_frame`.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from paper_repro.config import Config, relaxed_box
 from paper_repro.problem.ocp import Controller, NMPCSolution, selected_states
-from paper_repro.problem.scan import drop_non_finite
 from paper_repro.progress import step_progress
 from paper_repro.sim.checks import SetupHazardWarning, check_setup, setup_hazards
+from paper_repro.sim.perception import Perception
 from paper_repro.sim.plant import plant_for
-from paper_repro.sim.result import FAULT_STATUSES, RESULT_ARRAYS, SimulationResult, run_metadata
+from paper_repro.sim.result import RESULT_ARRAYS, SimulationResult, run_metadata
+from paper_repro.sim.termination import Termination
 from paper_repro.solvers.factory import make_controller
 from paper_repro.vehicles.base import VehicleModel
 from paper_repro.vehicles.quadrotor import quadrotor_model
 from paper_repro.world.guide import Guide
-from paper_repro.world.lidar import Lidar
-from paper_repro.world.local_map import MAPPED_SPEED, VoxelMap
+from paper_repro.world.local_map import VoxelMap
 from paper_repro.world.scenarios import mission_scene
 from paper_repro.world.scene import Scene
+from paper_repro.world.truth import TrueClearance
 
 
 @dataclass(frozen=True)
@@ -112,146 +113,102 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
                                                                       max_steps=max_steps))
     sim, ts = cfg.simulation, cfg.nmpc.ts
     scene = scene if scene is not None else mission_scene(sim)
-    passage = sim.kind == "passage"
     model = _vehicle(cfg, controller, model)
-    # An inconsistent mission fails here, before anything is built.
-    check_setup(cfg, scene, model)
+    check_setup(cfg, scene, model)  # an inconsistent mission fails here, before any build
     x = _start_state(model, scene, initial_state)
     hazards = setup_hazards(cfg, scene, model)
     for line in hazards["warnings"]:
         warnings.warn(f"{scene.name}: {line}", SetupHazardWarning, stacklevel=2)
-    lidar = Lidar(scene.clouds, cfg.sensor.range, noise=cfg.sensor, motions=scene.motions,
-                  dim=scene.dim)
-    plant = plant if plant is not None else plant_for(model, cfg)
-    if not callable(getattr(plant, "step", None)):
-        raise ValueError(f"plant must have a step(x, u) -> x_next method, got "
-                         f"{type(plant).__name__}")
+    plant = _plant(plant, model, cfg)
     measure = getattr(plant, "measure", None)
+    state_fault = None if faults is None else faults.state
+    perception = Perception(cfg, scene, None if faults is None else faults.scan)
+    stop = Termination(cfg, scene, model)
     output = _output_map(model)
-    truth = _TrueClearance(scene)
-    predict = _predictor(cfg.nmpc.prediction, lidar, ts)
-    read_map, local_map = _map_reader(cfg, scene)
-    guide = _guide(cfg, model, local_map)
+    guide = _guide(cfg, model, perception.local_map)
     ctl = controller or make_controller(cfg, model)
     ctl.reset()
     counters = _SolverCounters(ctl)
-    targets = np.atleast_2d(np.asarray(scene.targets, float))
-    finish_point, finish_dir = ((np.asarray(v, float) for v in scene.finish) if passage
-                                else (None, None))
-    stall_steps = int(np.ceil(sim.stall_time / ts))
-
     log = _Log(sim.max_steps, model.nx, model.nu, len(output(x)),
                None if cfg.nmpc.prediction == "static" else (len(scene.clouds), scene.dim),
                None if guide is None else scene.dim)
-    reached = np.full(len(targets), -1)
-    target_index, slow, outcome = 0, 0, "step_limit"
     plan: NMPCSolution | None = None
-    in_a_row, errors, last_good = 0, [], x.copy()
+    errors, last_good = [], x.copy()
     meta = run_metadata()  # before flying: the commit and versions that produce this run
     meta["hazards"] = hazards
     if callable(getattr(plant, "reset", None)):
         plant.reset(x.copy())
     bar = step_progress(sim.max_steps, progress)
     wall = time.perf_counter()
-    velocity = np.array(model.velocity, dtype=np.intp)
     y = output(x)
     for k in range(sim.max_steps):
-        target = targets[target_index]
-        t = k * ts
+        t, target = k * ts, stop.target
         measured = x if measure is None else np.asarray(measure(x.copy()), float)
-        if faults is not None and faults.state is not None:
-            measured = faults.state(k, measured.copy())
-        visible = lidar.scan(y, t)
-        if faults is not None and faults.scan is not None:
-            visible = faults.scan(k, visible)
-        visible, dropped = drop_non_finite(visible, scene.dim)
-        velocities = predict(visible, t)  # the tracker reads the raw scan
-        if velocities is not None:
-            log.region_velocities[k] = velocities  # what the controller is handed
-        if read_map is not None:
-            visible = read_map(visible, y, t, velocities)
+        if state_fault is not None:
+            measured = state_fault(k, measured.copy())
+        seen = perception.sense(k, t, y)
+        if seen.velocities is not None:
+            log.region_velocities[k] = seen.velocities  # what the controller is handed
         set_point = target
         if guide is not None:  # the path's look-ahead, from the map just updated
-            set_point = log.set_points[k] = guide.set_point(local_map, y, t, target)
-        sol = _solve(ctl, measured, set_point, visible, plan, errors, velocities, model)
+            set_point = log.set_points[k] = guide.set_point(perception.local_map, y, t, target)
+        sol = _solve(ctl, measured, set_point, seen.visible, plan, errors, seen.velocities,
+                     model)
         if sol.success:
             plan, last_good = sol, measured
-        else:
+        else:  # the previous plan shifted by one step (hover where it was, if none)
             plan = plan.shifted() if plan is not None else ctl.hover_guess(last_good)
             if sol.status == "solve_error" or sol.status == "state_fault":
                 sol = dataclasses.replace(sol, x_a=plan.x_a, u_a=plan.u_a)
-        in_a_row = in_a_row + 1 if sol.status in FAULT_STATUSES else 0
+        stop.count_fault(sol.status)
         u = plan.u[0]
-        log.record(k, t, x, y, u, sol, target_index, sum(len(v) for v in visible), dropped)
-
+        log.record(k, t, x, y, u, sol, stop.target_index,
+                   sum(len(v) for v in seen.visible), seen.dropped)
         x, y_before = plant.step(x, u), y
         y = output(x)
-        error = _norm(y - target)
-        if bar is not None:
-            bar.update(1)
-            if k % 50 == 0:
-                bar.set_postfix(target=target_index, error=f"{error:.2f} m",
-                                solve=f"{sol.solve_time * 1e3:.2g} ms")
-        if error < sim.tolerance and reached[target_index] < 0:
-            reached[target_index] = k + 1
-            if target_index + 1 < len(targets):
-                target_index += 1
-            elif not passage:
-                outcome = "completed"
-                break
-        if passage and float(np.dot(y - finish_point, finish_dir)) >= 0.0:
-            outcome = "completed"
-            break
-        # Stalled: slow for stall_time while still far from the target (a deadlock).
-        speed = _norm(x[velocity]) if len(velocity) else _norm(y - y_before) / ts
-        slow = slow + 1 if speed < sim.stall_speed and error > sim.stall_distance else 0
-        if slow > stall_steps:
-            outcome = "stalled"
-            break
-        if in_a_row > sim.fault_steps:
-            outcome = "fault"
-            meta["fault"] = (f"{in_a_row} steps in a row without a usable state or solve "
-                             f"(last: {sol.status}{': ' + errors[-1] if errors else ''})")
+        ended = stop.after_step(k, x, y, y_before)
+        _show_progress(bar, k, stop, sol)
+        if ended:
             break
     if bar is not None:
         bar.close()
+    if stop.outcome == "fault":
+        meta["fault"] = (f"{stop.faults_in_a_row} steps in a row without a usable state or "
+                         f"solve (last: {sol.status}{': ' + errors[-1] if errors else ''})")
 
     arrays = log.arrays(x)
     # The true clearance of every step at once, after the flight: it is only logged, and one
     # batched KD-tree query costs a fraction of one query per step.
-    arrays["clearance"] = truth.along(log.y[:log.n], arrays["t"])
+    arrays["clearance"] = TrueClearance(scene).along(log.y[:log.n], arrays["t"])
     meta["wall_time_s"] = time.perf_counter() - wall
     meta["errors"] = errors
     meta["scene"] = scene.name
     meta.update(counters.since())
     if guide is not None:
         meta["guide"] = dict(guide.stats)
-    return SimulationResult(targets=targets, reached=reached, outcome=outcome, scene=scene,
-                            config=cfg, meta=meta, **arrays)
+    return SimulationResult(targets=stop.targets, reached=stop.reached, outcome=stop.outcome,
+                            scene=scene, config=cfg, meta=meta, **arrays)
 
 
-def _map_reader(cfg: Config, scene: Scene):
-    """What the controller reads instead of the raw scan when ``sensor.map_voxel`` > 0: a
-    function (visible, y, t, velocities) -> visible that updates a
-    :class:`~paper_repro.world.local_map.VoxelMap` with the scan and returns its points within
-    r_s, and the map. A region predicted to move faster than ``MAPPED_SPEED`` stays out of the
-    map and is read from the scan. (None, None) when the map is off (the paper)."""
-    if cfg.sensor.map_voxel == 0:
-        return None, None
-    if scene.dim != 3:
-        raise ValueError(f"sensor.map_voxel needs a 3-D scene; {scene.name!r} is planar "
-                         f"(p = {scene.dim}): set map_voxel = 0")
-    local_map = VoxelMap(voxel=cfg.sensor.map_voxel, sensing_range=cfg.sensor.range)
-    n = len(scene.clouds)
+def _plant(plant, model: VehicleModel, cfg: Config):
+    """``plant`` checked (an object with ``step``), or the default of ``model``
+    (:func:`~paper_repro.sim.plant.plant_for`)."""
+    plant = plant if plant is not None else plant_for(model, cfg)
+    if not callable(getattr(plant, "step", None)):
+        raise ValueError(f"plant must have a step(x, u) -> x_next method, got "
+                         f"{type(plant).__name__}")
+    return plant
 
-    def read(visible, y, t, velocities):
-        moving = ([False] * n if velocities is None
-                  else [float(np.linalg.norm(v)) > MAPPED_SPEED for v in velocities])
-        local_map.update(visible, y, t, exclude=moving)
-        mapped = local_map.regions(y, cfg.sensor.range, n)
-        return [visible[i] if moving[i] else mapped[i] for i in range(n)]
 
-    return read, local_map
+def _show_progress(bar, k: int, stop: Termination, sol: NMPCSolution) -> None:
+    """One step on the progress bar, with the target, the error and the solve time every 50
+    steps."""
+    if bar is None:
+        return
+    bar.update(1)
+    if k % 50 == 0:
+        bar.set_postfix(target=stop.target_index, error=f"{stop.error:.2f} m",
+                        solve=f"{sol.solve_time * 1e3:.2g} ms")
 
 
 def _guide(cfg: Config, model: VehicleModel, local_map: VoxelMap | None) -> Guide | None:
@@ -267,20 +224,6 @@ def _guide(cfg: Config, model: VehicleModel, local_map: VoxelMap | None) -> Guid
                  lookahead=g.lookahead, check_period=g.check_period,
                  replan_period=g.replan_period, max_turn=g.max_turn, climb=g.climb,
                  stuck_time=g.stuck_time, set_point_filter=g.set_point_filter)
-
-
-def _predictor(prediction: str, lidar: Lidar, ts: float):
-    """``(visible, t) -> velocities``: what the controller is told of the regions' motion,
-    one (p,) m/s per region, or ``None`` for ``"static"`` (the paper): the regions' true
-    velocities (``"oracle"``) or a :class:`~paper_repro.world.tracking.RegionTracker`'s
-    estimates from the scans (``"kalman"``)."""
-    if prediction == "static":
-        return lambda visible, t: None
-    if prediction == "oracle":
-        return lambda visible, t: lidar.velocities(t)
-    from paper_repro.world.tracking import RegionTracker
-
-    return RegionTracker(ts).update
 
 
 class _SolverCounters:
@@ -386,38 +329,6 @@ class _Log:
         return out
 
 
-class _TrueClearance:
-    """Distance (m) from a position to the nearest cloud point where it is at time t: one
-    KD-tree over every point for a static scene (as always), one per region queried at
-    y − c_i(t) for a moving one; ``inf`` for a scene without points."""
-
-    def __init__(self, scene: Scene):
-        self.motions = scene.motions
-        if self.motions is None:
-            points = scene.all_points
-            self.trees = [cKDTree(points)] if len(points) else []
-        else:
-            self.trees = [cKDTree(c) if len(c) else None for c in scene.clouds]
-
-    def along(self, y: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """The distances of a flight, (K,) m: positions ``y`` (K, p) at times ``t`` (K,) s,
-        in one query per tree; NaN where the position is not finite (a diverged plant)."""
-        out = np.full(len(y), np.inf)
-        finite = np.isfinite(y).all(axis=1)
-        y, t = y[finite], np.asarray(t)[finite]
-        if len(y) and self.motions is None and self.trees:
-            out[finite] = self.trees[0].query(y)[0]
-        elif len(y) and self.motions is not None:
-            near = out[finite]
-            for tree, m in zip(self.trees, self.motions, strict=True):
-                if tree is not None:
-                    at = y if m is None else y - np.array([m.offset(tk) for tk in t])
-                    np.minimum(near, tree.query(at)[0], out=near)
-            out[finite] = near
-        out[~finite] = np.nan
-        return out
-
-
 def _solve(ctl, measured, target, visible, plan, errors: list, velocities,
            model: VehicleModel) -> NMPCSolution:
     """The controller's solution, or a failed one with the fault's status: a non-finite
@@ -439,8 +350,3 @@ def _solve(ctl, measured, target, visible, plan, errors: list, velocities,
     return NMPCSolution(np.zeros((0, nu)), np.zeros((0, nx)), np.full(nx, np.nan),
                         np.full(nu, np.nan), False, status, 0, 0.0, np.nan)
 
-
-def _norm(v: np.ndarray) -> float:
-    """‖v‖₂ of a vector, computed as ``np.linalg.norm`` does it (√(v·v), the same number) at
-    a fraction of its cost: a few of them run at every step."""
-    return math.sqrt(v.dot(v))

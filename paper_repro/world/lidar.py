@@ -1,5 +1,6 @@
 """The virtual LiDAR: the cloud points within range of the vehicle, with optional noise,
-dropout and spurious returns, and the velocities of the regions it sees."""
+dropout and spurious returns. What it cannot see (the regions' true velocities, the true
+clearance) is in :mod:`paper_repro.world.truth`."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from scipy.spatial import cKDTree
 from paper_repro.config import SensorParams
 from paper_repro.validation import is_number, require_time
 from paper_repro.world.scene import checked_motions, cloud_array
+from paper_repro.world.truth import region_offsets
 
 # --- LiDAR ----------------------------------------------------------------------------------
 
@@ -76,24 +78,6 @@ class Lidar:
         noise as after construction (a clean slate for a rerun)."""
         self._rng = np.random.default_rng(self.noise.seed)
 
-    def offsets(self, t: float = 0.0) -> np.ndarray:
-        """(n_regions, 3) m, each region's offset c_i(t) from its stored cloud (zero when
-        static)."""
-        shifts = np.zeros((len(self.clouds), self.dim))
-        if self.motions is not None:
-            for i, m in enumerate(self.motions):
-                if m is not None:
-                    shifts[i] = m.offset(t)
-        return shifts
-
-    def velocities(self, t: float = 0.0) -> list[np.ndarray]:
-        """The regions' true velocities at time ``t`` (s): a list with one (3,) array per
-        region, m/s (zeros for a static region). The oracle a predictor can be given."""
-        require_time(t)
-        if self.motions is None:
-            return [np.zeros(self.dim) for _ in self.clouds]
-        return [np.zeros(self.dim) if m is None else m.velocity(t) for m in self.motions]
-
     def scan(self, position, t: float = 0.0) -> list[np.ndarray]:
         """Visible points of each region at time ``t`` (s; only moving regions depend on it):
         a list (one entry per region) of (k_i, 3) arrays, k_i = 0 for a region out of range.
@@ -133,7 +117,7 @@ class Lidar:
     def _moving_scan(self, p: np.ndarray, t: float) -> list[np.ndarray]:
         """:meth:`scan` with motions: region i's tree is queried at p − c_i(t) and its points
         are shifted by + c_i(t)."""
-        shifts = self.offsets(t)
+        shifts = region_offsets(self.motions, len(self.clouds), self.dim, t)
         local = [np.zeros(0, int) if tree is None else
                  np.asarray(tree.query_ball_point(p - shifts[i], self.range,
                                                   return_sorted=True), dtype=np.intp)

@@ -1,0 +1,83 @@
+"""The closed loop's named parts: termination's rules one by one, the tracker's tuning in the
+configuration (and the run key), the truth kept apart from the sensor."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from paper_repro import Config
+from paper_repro.config import SimulationParams, TrackerParams
+from paper_repro.sim.perception import Perception
+from paper_repro.sim.termination import Termination
+from paper_repro.vehicles.quadrotor import quadrotor_model
+from paper_repro.world.scene import Scene
+from paper_repro.world.truth import TrueClearance
+
+TWO_TARGETS = Scene("two", (), start=(0.0, 0.0, 1.0), targets=((5.0, 0.0, 1.0), (5.0, 5.0, 1.0)))
+
+
+def _stop(scene=TWO_TARGETS, **simulation) -> Termination:
+    cfg = Config(simulation=dataclasses.replace(SimulationParams(), **simulation))
+    return Termination(cfg, scene, quadrotor_model())
+
+
+def _state(y, v=(0.0, 0.0, 0.0)):
+    x = np.zeros(12)
+    x[:3], x[6:9] = y, v
+    return x
+
+
+def test_targets_are_reached_in_turn_and_the_last_completes_a_mission():
+    stop = _stop()
+    moving = (1.0, 0.0, 0.0)
+    assert not stop.after_step(0, _state((4.9, 0.0, 1.0), moving), np.array([4.9, 0.0, 1.0]),
+                               np.zeros(3))
+    assert stop.target_index == 1 and list(stop.reached) == [1, -1]
+    assert stop.after_step(7, _state((5.0, 4.8, 1.0), moving), np.array([5.0, 4.8, 1.0]),
+                           np.zeros(3))
+    assert stop.outcome == "completed" and list(stop.reached) == [1, 8]
+
+
+def test_a_vehicle_slow_far_from_its_target_for_stall_time_is_stalled():
+    """stall_time 0.05 s at T_s = 0.01 s: more than 5 slow steps in a row end the flight;
+    a step at speed resets the count."""
+    stop = _stop(stall_time=0.05)
+    y, still = np.array([0.0, 0.0, 1.0]), _state((0.0, 0.0, 1.0))
+    ended = [stop.after_step(k, still, y, y) for k in range(5)]
+    assert not any(ended)
+    assert not stop.after_step(5, _state((0, 0, 1.0), (1.0, 0, 0)), y, y)  # moving: reset
+    ended = [stop.after_step(k, still, y, y) for k in range(6, 12)]
+    assert ended == [False] * 5 + [True] and stop.outcome == "stalled"
+
+
+def test_persistent_faults_end_the_flight_and_a_usable_step_resets_them():
+    stop = _stop(fault_steps=2)
+    y, x = np.array([0.0, 0.0, 1.0]), _state((0.0, 0.0, 1.0), (1.0, 0.0, 0.0))
+    for status in ("state_fault", "solve_error", "Solve_Succeeded", "state_fault"):
+        stop.count_fault(status)
+        assert not stop.after_step(0, x, y, y)
+    stop.count_fault("state_fault")
+    stop.count_fault("state_fault")
+    assert stop.after_step(1, x, y, y) and stop.outcome == "fault"
+
+
+def test_the_tracker_is_tuned_from_the_configuration_and_keyed_only_off_its_defaults():
+    base = Config(nmpc=dataclasses.replace(Config().nmpc, prediction="kalman"))
+    tuned = dataclasses.replace(base, tracker=TrackerParams(accel_noise=1.5))
+    assert "tracker" not in base.key_dict() and tuned.key_dict()["tracker"]["accel_noise"] == 1.5
+    assert Config.from_dict(tuned.to_dict()) == tuned
+    scene = Scene("empty", (), start=(0.0, 0.0, 1.0), targets=((1.0, 0.0, 1.0),))
+    tracker = Perception(tuned, scene).predict.__self__
+    assert tracker.accel_noise == 1.5 and tracker.dim == 3
+
+
+@pytest.mark.parametrize("name, value", [("accel_noise", 0.0), ("gate_probability", 1.0),
+                                         ("subset_jump", -1.0), ("forget_after", np.inf)])
+def test_bad_tracker_settings_are_refused_by_name(name, value):
+    with pytest.raises(ValueError, match=f"^{name} must"):
+        TrackerParams(**{name: value})
+
+
+def test_an_empty_scene_is_infinitely_clear():
+    assert np.isinf(TrueClearance(TWO_TARGETS).along(np.zeros((3, 3)), np.zeros(3))).all()
