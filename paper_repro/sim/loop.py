@@ -3,8 +3,9 @@
 The step loop of :func:`simulate` is short on purpose; read it to see exactly what happens at
 each sampling instant. Its parts have modules of their own: what the controller is given
 (:mod:`~paper_repro.sim.perception`), what the vehicle flies in (:mod:`~paper_repro.sim.plant`)
-and when the flight ends (:mod:`~paper_repro.sim.termination`). :class:`SimulationResult` saves itself as ``result.npz`` with the full
-``config.json`` beside it, and becomes a pandas DataFrame with :meth:`SimulationResult.to_frame`.
+and when the flight ends (:mod:`~paper_repro.sim.termination`). :class:`SimulationResult`
+saves itself as ``result.npz`` with the full ``config.json`` beside it, and becomes a pandas
+DataFrame with :meth:`SimulationResult.to_frame`.
 """
 
 from __future__ import annotations
