@@ -63,4 +63,8 @@ def test_mathjax_is_staged_with_the_pages(tmp_path):
     assert (src / "conf.py").is_file() and (src / "index.md").is_file()
     assert sorted(p.stem for p in (src / "notebooks").glob("*.ipynb")) == site.notebook_names()
     assert (src / "figures" / "fig04_thrusts.png").is_file()
+    # ... and beside the pages' folder, where a page of docs/theory/ finds them as in the
+    # repository (../../figures/x.png)
+    page = src / "theory" / "distance.md"
+    assert (page.parent / "../../figures/tutorial_eta_sigma.png").resolve().is_file()
     assert not list((src / "figures").rglob("*.pdf"))

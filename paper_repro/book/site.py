@@ -74,6 +74,10 @@ def stage(executed: Path, src: Path, quick: bool = False, strict: bool = True,
           log=print) -> Path:
     """Copy the pages, the executed notebooks and the figures into ``src`` (emptied first).
 
+    The figures go to ``src/figures`` and to ``figures`` beside ``src``: a page in a folder
+    of ``docs/`` (``docs/theory/``) reaches them as it does in the repository
+    (``../../figures/x.png``), so it renders the same on a repository browser and in the book.
+
     A notebook missing from ``executed``: with ``strict``, a ``ValueError`` naming every
     missing one and the command that executes it, before anything is copied; without, its
     source (no outputs) under a first cell that says so and names that command, and one
@@ -100,11 +104,13 @@ def stage(executed: Path, src: Path, quick: bool = False, strict: bool = True,
         else:
             shutil.copy2(executed / f"{name}.ipynb", src / "notebooks" / f"{name}.ipynb")
     figures = paths.figures_dir()
+    beside = [] if (src.parent / "figures").resolve() == figures.resolve() else [src.parent]
     for path in sorted(figures.rglob("*")):
         rel = path.relative_to(figures)
         if path.suffix in FIGURE_SUFFIXES and rel.parts[0] != "quick":
-            (src / "figures" / rel).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(path, src / "figures" / rel)
+            for into in (folder / "figures" for folder in (src, *beside)):
+                (into / rel).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copy2(path, into / rel)
     return src
 
 

@@ -4,6 +4,7 @@
 ``common``         colours, axes helpers, decimation, :func:`save_figure`
 ``flight``         the paper's figures of one flight, and summary figures
 ``distance``       the smoothed distance on a 2-D slice (the tutorial)
+``barrier``        the CBF penalty F(g) and the decay g ≤ 0 allows (the tutorial)
 ``animation``      animations of a flight
 ``studies``        rates, paired differences, ECDFs, sweeps of a study table
 ``clock``          the mission's clock
@@ -19,6 +20,7 @@ Figs. 5, 7 :func:`plot_tracking_errors`; Fig. 6 :func:`plot_states`.
 """
 
 from paper_repro.plots.animation import animate_flight, save_animation
+from paper_repro.plots.barrier import penalty_values, plot_barrier_penalty
 from paper_repro.plots.clock import plot_clock_levers, plot_flight_clocks
 from paper_repro.plots.common import (
     AXIS_LABELS,
@@ -104,6 +106,8 @@ __all__ = [
     "mark_start_and_targets",
     "MAX_POINTS",
     "METRIC_COLOURS",
+    "penalty_values",
+    "plot_barrier_penalty",
     "plot_clearance_ecdf",
     "plot_clearance_time",
     "plot_clock_levers",

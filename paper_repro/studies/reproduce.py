@@ -110,7 +110,8 @@ NOTEBOOKS = (
                  quick={"frames": 20}),
     NotebookSpec("14_controller_tutorial", "tutorial, the controller: problem (21), RTI and IPOPT, "
                  "a ground robot", (),
-                 _figure("tutorial_controller_plan", "tutorial_controller_ground_robot"),
+                 _figure("tutorial_barrier_penalty", "tutorial_controller_plan",
+                         "tutorial_controller_ground_robot"),
                  quick={"robot_steps": 200, "timing_repeats": 2}),
 )
 """Every notebook, in the order :func:`reproduce` executes them."""
