@@ -6,8 +6,10 @@ longest, in words)."""
 
 from __future__ import annotations
 
+import re
 import tomllib
 
+import pytest
 import yaml
 
 from paper_repro import paths
@@ -124,3 +126,104 @@ def test_citation_names_this_version_the_license_and_the_papers_authors():
     for a in paper["authors"]:  # the README's BibTeX names the same authors
         assert f"{a['family-names']}, {a['given-names']}" in citing
     assert f"version = {{{project['version']}}}" in citing
+
+
+# --- Short sentences ---------------------------------------------------------------------
+
+OWN_PAGES = ("README.md", "environment.md", "docs/contributing.md", "docs/reproduction.md",
+             "docs/solvers.md", "docs/usage.md", "docs/failures.md", "docs/own_model.md",
+             "docs/api.md", "docs/glossary.md")
+"""The pages held to the limits below (the others are measured and printed)."""
+
+MEDIAN_WORDS, MAX_WORDS, MAX_LINES = 22, 60, 250
+"""A page's median sentence, its longest sentence (words) and its length (lines)."""
+
+_ABBREVIATIONS = ("e.g.", "i.e.", "eq.", "Eq.", "Fig.", "Figs.", "fig.", "al.", "vs.", "cf.",
+                  "Sec.", "approx.", "No.", "etc.")
+_END = re.compile(r"(?<=[.!?])[\"')\]*_]*\s+")
+
+
+def all_pages() -> list[str]:
+    """README.md, environment.md and every page of ``docs/``, relative to the root."""
+    docs = sorted(p.relative_to(ROOT).as_posix() for p in (ROOT / "docs").rglob("*.md")
+                  if "generated" not in p.parts)
+    return ["README.md", "environment.md", *docs]
+
+
+def prose(text: str) -> list[str]:
+    """The paragraphs of a Markdown page, each on one line: fenced blocks, tables, headings,
+    HTML comments and lines that are only an image left out; a list item starts a
+    paragraph."""
+    text = re.sub(r"<!--.*?-->", "", text, flags=re.S)
+    paragraphs, current, fence = [], [], None
+    for line in text.splitlines():
+        stripped = line.strip()
+        if fence is not None:
+            if stripped.startswith(fence):
+                fence = None
+            continue
+        match = re.match(r"(`{3,}|~{3,}|:{3,})", stripped)
+        if match:
+            fence = match.group(1)
+            paragraphs.append(" ".join(current))
+            current = []
+            continue
+        skip = (not stripped or stripped.startswith(("|", "#", "$$"))
+                or re.fullmatch(r"!\[[^\]]*\]\([^)]*\)", stripped))
+        starts_item = re.match(r"([-*+]|\d+\.)\s", stripped)
+        if skip or starts_item:
+            paragraphs.append(" ".join(current))
+            current = []
+        if not skip:
+            current.append(stripped)
+    paragraphs.append(" ".join(current))
+    return [p for p in paragraphs if p.strip()]
+
+
+def sentences(paragraph: str) -> list[str]:
+    """A paragraph cut after each '.', '!' or '?' that ends a word and is no abbreviation."""
+    out, start = [], 0
+    for match in _END.finditer(paragraph):
+        before = paragraph[start:match.start()].split()
+        if before and before[-1].lstrip("(") in _ABBREVIATIONS:
+            continue
+        out.append(paragraph[start:match.start()])
+        start = match.end()
+    out.append(paragraph[start:])
+    return [s for s in out if word_count(s)]
+
+
+def word_count(sentence: str) -> int:
+    """Tokens between spaces that hold a letter or a digit."""
+    return sum(1 for token in sentence.split() if re.search(r"\w", token))
+
+
+def sentence_figures(page: str) -> tuple[float, int, int, str]:
+    """Median and largest sentence length (words), line count, and the longest sentence."""
+    import statistics
+
+    text = (ROOT / page).read_text(encoding="utf-8")
+    found = [s for p in prose(text) for s in sentences(p)]
+    lengths = [word_count(s) for s in found]
+    longest = max(found, key=word_count) if found else ""
+    return (statistics.median(lengths) if lengths else 0.0, max(lengths, default=0),
+            len(text.splitlines()), longest)
+
+
+def test_sentences_are_cut_where_a_sentence_ends():
+    paragraph = ("The NMPC is local, e.g. in front of a wall (Fig. 2). It stalls at 0.01 m/s. "
+                 "`rti` flies. Does it?")
+    assert [word_count(s) for s in sentences(paragraph)] == [11, 5, 2, 2]
+    page = "# Title\n\nOne two.\n\n| a | b |\n|---|---|\n\n```python\nx = 1. Y = 2\n```\n- Three\n"
+    assert prose(page) == ["One two.", "- Three"]
+
+
+@pytest.mark.parametrize("page", all_pages())
+def test_sentences_are_short_and_pages_are_not_long(page):
+    median, longest, lines, sentence = sentence_figures(page)
+    print(f"\n{page}: median {median:g} words, max {longest}, {lines} lines")
+    if page not in OWN_PAGES:
+        return
+    assert median <= MEDIAN_WORDS, f"{page}: the median sentence has {median:g} words"
+    assert longest <= MAX_WORDS, f"{page}: a sentence of {longest} words: {sentence}"
+    assert lines <= MAX_LINES, f"{page}: {lines} lines"
