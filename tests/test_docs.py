@@ -227,3 +227,49 @@ def test_sentences_are_short_and_pages_are_not_long(page):
     assert median <= MEDIAN_WORDS, f"{page}: the median sentence has {median:g} words"
     assert longest <= MAX_WORDS, f"{page}: a sentence of {longest} words: {sentence}"
     assert lines <= MAX_LINES, f"{page}: {lines} lines"
+
+
+# --- Images: from the page's own folder on a repository browser, staged in the book --------
+
+_IMAGE = re.compile(r"!\[[^\]]*\]\(([^)\s]+)\)")
+
+
+def book_conf():
+    """``docs/conf.py`` as a module (it is Sphinx's configuration, not a package module)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("book_conf", ROOT / "docs" / "conf.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("page", all_pages())
+def test_every_image_resolves_from_its_page_and_in_the_staged_book(page):
+    from paper_repro.book.site import FIGURE_SUFFIXES
+
+    text = (ROOT / page).read_text(encoding="utf-8")
+    for target in _IMAGE.findall(text):
+        if "://" in target:
+            continue
+        assert (ROOT / page).parent.joinpath(target).resolve().is_file(), \
+            f"{page}: the image {target} is not there, relative to the page's folder"
+    if not page.startswith("docs/"):
+        return
+    docname = page.removeprefix("docs/").removesuffix(".md")
+    staged = book_conf().figures_from_the_book(docname, text)
+    src = ROOT / "docs"  # the book stages docs/ as its source, figures/ inside it
+    for target in _IMAGE.findall(staged):
+        path = (src / docname).parent.joinpath(target).resolve()
+        rel = path.relative_to(src.resolve())
+        assert rel.parts[0] == "figures", f"{page}: {target} is not staged by the book"
+        assert path.suffix in FIGURE_SUFFIXES
+        assert paths.figures_dir().joinpath(*rel.parts[1:]).is_file(), f"{page}: {target}"
+
+
+def test_the_book_moves_only_image_paths_into_the_repository_figures():
+    move = book_conf().figures_from_the_book
+    assert move("reproduction", "![a](../figures/x.png)") == "![a](figures/x.png)"
+    assert move("studies/eta", "![a](../../figures/s/x.png)") == "![a](../figures/s/x.png)"
+    text = "[table](../figures/x.csv) ![b](figures/y.png) ![c](../../figures/z.png)"
+    assert move("reproduction", text) == text
