@@ -273,3 +273,16 @@ def test_the_book_moves_only_image_paths_into_the_repository_figures():
     assert move("studies/eta", "![a](../../figures/s/x.png)") == "![a](../figures/s/x.png)"
     text = "[table](../figures/x.csv) ![b](figures/y.png) ![c](../../figures/z.png)"
     assert move("reproduction", text) == text
+
+
+# --- The README's commands ------------------------------------------------------------------
+
+
+def test_the_readme_gives_every_command_one_line():
+    from paper_repro.cli.parser import COMMANDS
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = readme[readme.index("## The commands"):]
+    section = section[:section.index("\n## ")]
+    listed = re.findall(r"^- `([a-z]+)`: ", section, re.M)
+    assert listed == list(COMMANDS), f"the README lists {listed}, the CLI has {list(COMMANDS)}"
