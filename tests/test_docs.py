@@ -153,7 +153,7 @@ def all_pages() -> list[str]:
 def prose(text: str) -> list[str]:
     """The paragraphs of a Markdown page, each on one line: fenced blocks, tables, headings,
     HTML comments and lines that are only an image left out; a list item starts a
-    paragraph."""
+    paragraph, without its marker."""
     text = re.sub(r"<!--.*?-->", "", text, flags=re.S)
     paragraphs, current, fence = [], [], None
     for line in text.splitlines():
@@ -175,7 +175,7 @@ def prose(text: str) -> list[str]:
             paragraphs.append(" ".join(current))
             current = []
         if not skip:
-            current.append(stripped)
+            current.append(stripped[starts_item.end():] if starts_item else stripped)
     paragraphs.append(" ".join(current))
     return [p for p in paragraphs if p.strip()]
 
@@ -213,9 +213,10 @@ def sentence_figures(page: str) -> tuple[float, int, int, str]:
 def test_sentences_are_cut_where_a_sentence_ends():
     paragraph = ("The NMPC is local, e.g. in front of a wall (Fig. 2). It stalls at 0.01 m/s. "
                  "`rti` flies. Does it?")
-    assert [word_count(s) for s in sentences(paragraph)] == [11, 5, 2, 2]
-    page = "# Title\n\nOne two.\n\n| a | b |\n|---|---|\n\n```python\nx = 1. Y = 2\n```\n- Three\n"
-    assert prose(page) == ["One two.", "- Three"]
+    assert [word_count(s) for s in sentences(paragraph)] == [12, 5, 2, 2]
+    page = ("# Title\n\nOne two.\n\n| a | b |\n|---|---|\n\n```python\nx = 1. Y = 2\n```\n"
+            "- Three\n  four.\n1. Five. Six\n")
+    assert prose(page) == ["One two.", "Three four.", "Five. Six"]
 
 
 @pytest.mark.parametrize("page", all_pages())
