@@ -331,3 +331,23 @@ def test_the_blocks_are_found_and_a_marked_block_is_left_out():
                                                    "docs/own_model.md"}
     text = f"a\n{NO_RUN}\n```python\nx = 1\n```\n```python\ny = 2\n```\n"
     assert [m.group(2) for m in _BLOCK.finditer(text) if not m.group(1)] == ["y = 2\n"]
+
+
+# --- Links into the glossary ----------------------------------------------------------------
+
+
+def github_slug(heading: str) -> str:
+    """The anchor GitHub (and MyST's ``myst_heading_anchors``) gives a heading."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def test_every_link_into_the_glossary_names_one_of_its_headings():
+    glossary = (ROOT / "docs" / "glossary.md").read_text(encoding="utf-8")
+    anchors = {github_slug(h) for h in re.findall(r"^#{1,3} (.+)$", glossary, re.M)}
+    assert len(anchors) == len(re.findall(r"^#{1,3} ", glossary, re.M)), "two equal headings"
+    assert github_slug("RTI (real-time iteration)") == "rti-real-time-iteration"
+    assert github_slug("Sampling time T_s") == "sampling-time-t_s"
+    for page in all_pages():
+        text = (ROOT / page).read_text(encoding="utf-8")
+        for anchor in re.findall(r"glossary\.md#([^)\s`]+)\)", text):
+            assert anchor in anchors, f"{page} links glossary.md#{anchor}, which is no heading"
