@@ -1,13 +1,18 @@
 """Sphinx configuration of the book (``python -m paper_repro book``).
 
-The builder (:mod:`paper_repro.evidence.book`) stages these pages, the executed notebooks and
+The builder (:mod:`paper_repro.book.site`) stages these pages, the executed notebooks and
 the figures into one source folder and builds it with warnings as errors. Notebooks are
 never executed here: they show the outputs ``reproduce`` and the study commands gave them.
+
+A page links its images from its own folder in the repository (``../figures/x.png`` from
+``docs/``), so that they show on a repository browser. The staged folder holds the figures
+one level down, beside the pages (``figures/x.png``): :func:`figures_from_the_book` moves
+each image path up one folder as Sphinx reads the page.
 """
 
 project = "paper_repro"
-author = "paper_repro developers"
-copyright = "the paper_repro developers"  # noqa: A001 - Sphinx's name
+author = "the paper_repro authors"
+copyright = "the paper_repro authors"  # noqa: A001 - Sphinx's name
 
 extensions = ["myst_nb", "sphinx.ext.autodoc", "sphinx.ext.autosummary",
               "sphinx.ext.napoleon", "sphinx.ext.mathjax"]
@@ -52,5 +57,27 @@ def _escape_bars(app, what, name, obj, options, lines):
                                for part in _LITERAL.split(line))
 
 
+_IMAGE = re.compile(r"(!\[[^\]]*\]\()((?:\.\./)*)figures/")
+"""A Markdown image whose path climbs to the repository's ``figures/``."""
+
+
+def figures_from_the_book(docname: str, text: str) -> str:
+    """``text`` of page ``docname`` with each image path into the repository's ``figures/``
+    (one ``../`` more than the page's depth under ``docs/``) made to point at the staged
+    ``figures/`` (one less). Other paths, and links that are not images, are left alone."""
+    depth = docname.count("/")
+
+    def staged(match):
+        ups = match.group(2)
+        return match.group(1) + ("../" * depth if ups == "../" * (depth + 1) else ups) + "figures/"
+
+    return _IMAGE.sub(staged, text)
+
+
+def _read_figures_from_the_book(app, docname, source):
+    source[0] = figures_from_the_book(docname, source[0])
+
+
 def setup(app):
     app.connect("autodoc-process-docstring", _escape_bars)
+    app.connect("source-read", _read_figures_from_the_book)
