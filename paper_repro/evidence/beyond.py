@@ -177,9 +177,17 @@ def moving_heldout() -> str:
              f"{r.min_clearance_m:.3f} m", f"{int(r.completed)}/{int(r.runs)}",
              f"{int(r.failed_solves):,}", f"{int(r.encounters)}/{int(r.runs)}"]
             for r in table.itertuples()]
+    runs = pd.read_csv(paths.figures_dir() / "studies" / "moving_heldout" / "table.csv",
+                       usecols=["scene_seed", "set", "prediction", "metric", "collision"])
+    hits = runs[runs["collision"].astype(bool)]
+    where = "; ".join(
+        f"crossing {seed} ({g['set'].iloc[0]}: "
+        + ", ".join(f"{p} {m}" for p, m in zip(g["prediction"], g["metric"])) + ")"
+        for seed, g in hits.groupby("scene_seed"))
     return fmt.markdown_table(["crossings", "prediction", "metric", "collisions",
                                "closest approach", "completed", "failed solves",
-                               "a region within 3 m"], rows)
+                               "a region within 3 m"], rows) + (
+        f"\n\nThe runs that collide: {where}." if where else "\n\nNo run collides.")
 
 
 def moving_speeds() -> str:
@@ -240,6 +248,66 @@ def moving_levers() -> str:
                                "stalled", "TV of u, median (smoothed / Euclidean)",
                                "failed solves", "steps breaking (15), median"],
                               rows)
+
+
+def moving_definition() -> str:
+    """``figures/studies/moving_obstacles_definition/table.csv``: the study's smoothed crossings
+    with the barrier in Definition 1's form (c = δ), per barrier and prediction."""
+    from paper_repro.analysis import statistics
+
+    runs = pd.read_csv(paths.figures_dir() / "studies" / "moving_obstacles_definition" /
+                       "table.csv")
+    rates = statistics.rates(runs, by=["barrier", "prediction"]).set_index(
+        ["barrier", "prediction", "event"])
+    clearance = runs.groupby(["barrier", "prediction"], sort=False)["min_clearance_m"].median()
+    rows = [[barrier, prediction, fmt.rate(rates.loc[(barrier, prediction, "collision")]),
+             fmt.rate(rates.loc[(barrier, prediction, "completed")]), f"{value:.3f} m"]
+            for (barrier, prediction), value in clearance.items()]
+    return fmt.markdown_table(["barrier", "prediction", "collisions", "completed",
+                               "min clearance, median"], rows)
+
+
+def moving_design_settings() -> str:
+    """The settings the moving study's ``design`` rows flew, per metric, beside the paper's
+    barrier (``figures/studies/moving_obstacles/study.json``: each run's configuration
+    changes; a setting a run did not change keeps :class:`~paper_repro.config.Config`'s
+    default)."""
+    import json
+
+    from paper_repro.config import Config
+
+    specs = json.loads((paths.figures_dir() / "studies" / "moving_obstacles" /
+                        "study.json").read_text())["specs"]
+    default = Config()
+
+    def changes(barrier: str, metric: str) -> dict:
+        return next(s["config_changes"] for s in specs if s["labels"]["barrier"] == barrier
+                    and s["labels"]["metric"] == metric)
+
+    def value(changed: dict, key: str):
+        section, field = key.split(".")
+        return changed.get(key, getattr(getattr(default, section), field))
+
+    def step(changed: dict) -> float:
+        return value(changed, "nmpc.prediction_ts") or default.nmpc.ts
+
+    def off(x: float, unit: str) -> str:
+        return "off" if x == 0 else f"{x:g} {unit}"
+
+    runs = [changes("paper", "smooth"), changes("design", "smooth"),
+            changes("design", "euclidean")]
+    rows = [["margin of a region predicted to move (`barrier.moving_d_min`)",
+             *(off(value(c, "barrier.moving_d_min"), "m²") for c in runs)],
+            ["swept path (`barrier.sweep_time`)",
+             *(off(value(c, "barrier.sweep_time"), "s") for c in runs)],
+            ["look-ahead at the artificial equilibrium (`barrier.equilibrium_lookahead`)",
+             *(off(value(c, "barrier.equilibrium_lookahead"), "s") for c in runs)],
+            ["prediction step h (`nmpc.prediction_ts`)", *(f"{step(c):g} s" for c in runs)],
+            ["prediction span N·h", *(f"{default.nmpc.horizon * step(c):g} s" for c in runs)],
+            ["crossings timed to (`simulation.approach_time`)",
+             *(f"{value(c, 'simulation.approach_time'):g} s" for c in runs)]]
+    return fmt.markdown_table(["setting", "the paper's barrier", "design, smoothed",
+                               "design, Euclidean"], rows)
 
 
 def lateral_pace() -> str:

@@ -367,11 +367,14 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "moving_heldout": beyond.moving_heldout, "moving_speeds": beyond.moving_speeds,
     "moving_levers": beyond.moving_levers, "timeline": beyond.timeline,
     "tuning": beyond.tuning, "beyond": beyond.overview,
-    "passages": beyond.passage_pace, "guidance_pace": beyond.lateral_pace,
+    "passages": beyond.passage_pace, "moving_design": beyond.moving_design_settings,
+    "moving_definition": beyond.moving_definition, "guidance_pace": beyond.lateral_pace,
     "studies": study_commands,
     "moving_commands": lambda: commands(
         "studies/moving_obstacles", "studies/moving_speeds", "studies/moving_heldout",
-        "studies/avoidability", "solver_speed/crossing", "solver_speed/swept_pillar"),
+        "studies/avoidability"),
+    "moving_speed_commands": lambda: commands("solver_speed/crossing",
+                                              "solver_speed/swept_pillar"),
     "design_commands": lambda: commands("studies/moving_levers",
                                         "studies/moving_obstacles_definition"),
     "tuning_command": lambda: commands("tuning")}
