@@ -29,3 +29,36 @@ def test_render_replaces_only_block_bodies_and_names_unknown_blocks():
 def test_a_bar_inside_a_cell_is_escaped():
     table = formatting.markdown_table(["max |Δu|"], [["1 | 2"]])
     assert table.splitlines()[0] == "| max \\|Δu\\| |" and "1 \\| 2" in table
+
+
+def test_the_lateral_pace_quoted_is_the_printed_set_ups_clock():
+    """The pages' time constant is the lever table's printed row, and that row is what
+    analysis.clock computes for the default configuration now."""
+    from paper_repro.analysis.clock import clock
+    from paper_repro.config import Config
+    from paper_repro.evidence import beyond
+
+    tau = clock(Config()).tau_lateral_s
+    assert f"τ ≈ {tau:.0f} s" in beyond.lateral_pace()
+    assert f"/{tau:.0f} s." in beyond.lateral_pace()
+
+
+def test_the_levers_table_keeps_every_run_of_its_csv():
+    """One row per lever and crossing set; its collision cells add up to the CSV's."""
+    import re
+
+    import pandas as pd
+
+    from paper_repro import paths
+    from paper_repro.evidence import beyond
+
+    csv = pd.read_csv(paths.figures_dir() / "studies" / "moving_levers" / "levers.csv")
+    rows = beyond.moving_levers().splitlines()[2:]
+    groups = csv.groupby(["scenes", "lever"], sort=False)
+    assert len(rows) == groups.ngroups
+    for row, ((scenes, lever), g) in zip(rows, groups):
+        cells = [c.strip() for c in row.strip("|").split(" | ")]
+        assert cells[:2] == [scenes, f"`{lever}`"]
+        for cell, metric in zip(cells[3:5], ("smooth", "euclidean")):
+            counts = [int(n) for n in re.match(r"([\d / ]+) of", cell)[1].split(" / ")]
+            assert counts == g.loc[g["metric"] == metric, "collisions"].tolist()

@@ -177,9 +177,17 @@ def moving_heldout() -> str:
              f"{r.min_clearance_m:.3f} m", f"{int(r.completed)}/{int(r.runs)}",
              f"{int(r.failed_solves):,}", f"{int(r.encounters)}/{int(r.runs)}"]
             for r in table.itertuples()]
+    runs = pd.read_csv(paths.figures_dir() / "studies" / "moving_heldout" / "table.csv",
+                       usecols=["scene_seed", "set", "prediction", "metric", "collision"])
+    hits = runs[runs["collision"].astype(bool)]
+    where = "; ".join(
+        f"crossing {seed} ({g['set'].iloc[0]}: "
+        + ", ".join(f"{p} {m}" for p, m in zip(g["prediction"], g["metric"])) + ")"
+        for seed, g in hits.groupby("scene_seed"))
     return fmt.markdown_table(["crossings", "prediction", "metric", "collisions",
                                "closest approach", "completed", "failed solves",
-                               "a region within 3 m"], rows)
+                               "a region within 3 m"], rows) + (
+        f"\n\nThe runs that collide: {where}." if where else "\n\nNo run collides.")
 
 
 def moving_speeds() -> str:
@@ -209,19 +217,118 @@ def moving_speeds() -> str:
 
 
 def moving_levers() -> str:
-    """``figures/studies/moving_levers/levers.csv``: each lever on the crossings."""
+    """``figures/studies/moving_levers/levers.csv``: each lever on a set of crossings, one row
+    per lever and set; the runs of each prediction and metric side by side."""
     table = pd.read_csv(paths.figures_dir() / "studies" / "moving_levers" / "levers.csv")
-    rows = [[r.scenes, r.lever, r.prediction, r.metric, f"{r.encounters}/{r.runs}",
-             f"{r.collisions}/{r.runs} [{100 * r.collision_low:.0f}, "
-             f"{100 * r.collision_high:.0f}] %", f"{r.min_clearance_m:.3f} m",
-             f"{r.stalled}/{r.runs}", f"{r.tv_u_rate_median_N_per_s:.3g} N/s",
-             f"{r.failed_solves:,}", fmt.share(r.cbf_condition_violated_share_median),
-             f"{r.time_to_complete_median_s:.0f} s"]
-            for r in table.itertuples()]
-    return fmt.markdown_table(["crossings", "lever", "prediction", "metric", "a region in range",
-                           "collisions", "closest approach", "stalled", "TV of u, median",
-                           "failed solves", "steps breaking (15), median",
-                           "time, median"], rows)
+
+    def collisions(g: pd.DataFrame, metric: str) -> str:
+        g = g[g["metric"] == metric]
+        return (" / ".join(f"{c}" for c in g["collisions"]) + f" of {g['runs'].iloc[0]}"
+                + ("" if set(g["prediction"]) != {"static"} else " (static)"))
+
+    def spread(x: pd.Series, form: str, unit: str) -> str:
+        x = x.dropna()
+        if x.empty:
+            return "—"
+        low, high = form.format(x.min()), form.format(x.max())
+        return (low if low == high else f"{low}–{high}") + unit
+
+    rows = []
+    for (scenes, lever), g in table.groupby(["scenes", "lever"], sort=False):
+        rows.append([scenes, f"`{lever}`", f"{g['encounters'].sum()}/{g['runs'].sum()}",
+                     collisions(g, "smooth"), collisions(g, "euclidean"),
+                     f"{g['min_clearance_m'].min():.2f} m", f"{g['stalled'].sum()}",
+                     " / ".join(spread(g.loc[g["metric"] == m, "tv_u_rate_median_N_per_s"],
+                                       "{:.3g}", "") for m in ("smooth", "euclidean")) + " N/s",
+                     f"{g['failed_solves'].sum():,}",
+                     spread(100 * g["cbf_condition_violated_share_median"], "{:.0f}", " %")])
+    return fmt.markdown_table(["crossings", "lever", "runs with a region in range",
+                               "collisions, smoothed (oracle / Kalman)",
+                               "collisions, Euclidean (oracle / Kalman)", "closest approach",
+                               "stalled", "TV of u, median (smoothed / Euclidean)",
+                               "failed solves", "steps breaking (15), median"],
+                              rows)
+
+
+def moving_definition() -> str:
+    """``figures/studies/moving_obstacles_definition/table.csv``: the study's smoothed crossings
+    with the barrier in Definition 1's form (c = δ), per barrier and prediction."""
+    from paper_repro.analysis import statistics
+
+    runs = pd.read_csv(paths.figures_dir() / "studies" / "moving_obstacles_definition" /
+                       "table.csv")
+    rates = statistics.rates(runs, by=["barrier", "prediction"]).set_index(
+        ["barrier", "prediction", "event"])
+    clearance = runs.groupby(["barrier", "prediction"], sort=False)["min_clearance_m"].median()
+    rows = [[barrier, prediction, fmt.rate(rates.loc[(barrier, prediction, "collision")]),
+             fmt.rate(rates.loc[(barrier, prediction, "completed")]), f"{value:.3f} m"]
+            for (barrier, prediction), value in clearance.items()]
+    return fmt.markdown_table(["barrier", "prediction", "collisions", "completed",
+                               "min clearance, median"], rows)
+
+
+def moving_design_settings() -> str:
+    """The settings the moving study's ``design`` rows flew, per metric, beside the paper's
+    barrier (``figures/studies/moving_obstacles/study.json``: each run's configuration
+    changes; a setting a run did not change keeps :class:`~paper_repro.config.Config`'s
+    default)."""
+    import json
+
+    from paper_repro.config import Config
+
+    specs = json.loads((paths.figures_dir() / "studies" / "moving_obstacles" /
+                        "study.json").read_text())["specs"]
+    default = Config()
+
+    def changes(barrier: str, metric: str) -> dict:
+        return next(s["config_changes"] for s in specs if s["labels"]["barrier"] == barrier
+                    and s["labels"]["metric"] == metric)
+
+    def value(changed: dict, key: str):
+        section, field = key.split(".")
+        return changed.get(key, getattr(getattr(default, section), field))
+
+    def step(changed: dict) -> float:
+        return value(changed, "nmpc.prediction_ts") or default.nmpc.ts
+
+    def off(x: float, unit: str) -> str:
+        return "off" if x == 0 else f"{x:g} {unit}"
+
+    runs = [changes("paper", "smooth"), changes("design", "smooth"),
+            changes("design", "euclidean")]
+    rows = [["margin of a region predicted to move (`barrier.moving_d_min`)",
+             *(off(value(c, "barrier.moving_d_min"), "m²") for c in runs)],
+            ["swept path (`barrier.sweep_time`)",
+             *(off(value(c, "barrier.sweep_time"), "s") for c in runs)],
+            ["look-ahead at the artificial equilibrium (`barrier.equilibrium_lookahead`)",
+             *(off(value(c, "barrier.equilibrium_lookahead"), "s") for c in runs)],
+            ["prediction step h (`nmpc.prediction_ts`)", *(f"{step(c):g} s" for c in runs)],
+            ["prediction span N·h", *(f"{default.nmpc.horizon * step(c):g} s" for c in runs)],
+            ["crossings timed to (`simulation.approach_time`)",
+             *(f"{value(c, 'simulation.approach_time'):g} s" for c in runs)]]
+    return fmt.markdown_table(["setting", "the paper's barrier", "design, smoothed",
+                               "design, Euclidean"], rows)
+
+
+def lateral_pace() -> str:
+    """One sentence: the printed set-up's lateral time constant, from the lever sweep of
+    ``figures/studies/timeline/timeline_levers.csv`` (the row of the printed offset weight)."""
+    levers = pd.read_csv(paths.figures_dir() / "studies" / "timeline" / "timeline_levers.csv")
+    tau = levers[(levers["lever"] == "T") & (levers["value"] == 1)]["tau_lateral_s"].iloc[0]
+    return (f"Under the printed weights, the lateral time constant of the closed loop is "
+            f"τ ≈ {tau:.0f} s (`figures/studies/timeline/timeline_levers.csv`). The UAV's speed "
+            f"is then about (distance to its set-point)/{tau:.0f} s.")
+
+
+def passage_pace() -> str:
+    """:func:`lateral_pace`, then how long the completed passages of the Monte Carlo study
+    took (``figures/studies/monte_carlo/table.csv``)."""
+    runs = pd.read_csv(paths.figures_dir() / "studies" / "monte_carlo" / "table.csv",
+                       usecols=["completed", "time_to_complete_s"])
+    times = runs.loc[runs["completed"].astype(bool), "time_to_complete_s"]
+    return (lateral_pace() + f" A completed passage of the Monte Carlo study takes "
+            f"{times.min():.0f} to {times.max():.0f} s of flight, {times.median():.0f} s at the "
+            "median.")
 
 
 def timeline() -> str:

@@ -247,8 +247,6 @@ def sensing_window() -> str:
 def regeneration() -> str:
     """Every evidence set: the command that made it (its ``evidence.json``) and how long it
     took on the machine that made it (its ``timings.json``)."""
-    import json
-
     from paper_repro.evidence.sets import EVIDENCE_SETS, last_wall_time_s
 
     rows = []
@@ -256,12 +254,38 @@ def regeneration() -> str:
         folder = paths.figures_dir() / name
         if not folder.is_dir():
             continue
-        stamp = folder / "evidence.json"
-        made_by = json.loads(stamp.read_text())["made_by"] if stamp.is_file() else "—"
         seconds = last_wall_time_s(folder)
         wall = f"{seconds / 60:.1f} min" if seconds else "—"
-        rows.append([f"`figures/{name}`" if name else "`figures/`", f"`{made_by}`", wall])
+        rows.append([f"`figures/{name}`" if name else "`figures/`", f"`{made_by(name)}`", wall])
     return fmt.markdown_table(["evidence set", "made by", "wall time (2 cores, last run)"], rows)
+
+
+def commands(*names: str) -> str:
+    """The command that made each of the evidence sets ``figures/<name>`` (their
+    ``evidence.json``), one row each."""
+    return fmt.markdown_table(["evidence set", "made by"],
+                              [[f"`figures/{name}/`", f"`{made_by(name)}`"] for name in names])
+
+
+def study_commands() -> str:
+    """Every study of :data:`~paper_repro.studies.catalogue.STUDY_NOTEBOOKS`: its runs (the rows
+    of its ``table.csv``), its notebook and the command that made it."""
+    from paper_repro.studies.catalogue import STUDY_NOTEBOOKS
+
+    rows = []
+    for study, notebook in STUDY_NOTEBOOKS.items():
+        table = paths.figures_dir() / "studies" / study / "table.csv"
+        runs = f"{len(pd.read_csv(table, usecols=['name'])):,}" if table.is_file() else "—"
+        rows.append([f"`{study}`", runs, f"`{notebook}`", f"`{made_by(f'studies/{study}')}`"])
+    return fmt.markdown_table(["study", "runs", "notebook", "made by"], rows)
+
+
+def made_by(name: str) -> str:
+    """The command that made ``figures/<name>`` (its ``evidence.json``), or "—"."""
+    import json
+
+    stamp = paths.figures_dir() / name / "evidence.json"
+    return json.loads(stamp.read_text())["made_by"] if stamp.is_file() else "—"
 
 
 def throughput() -> str:
@@ -342,7 +366,18 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "moving_obstacles_tails": beyond.moving_obstacles_tails, "avoidability": beyond.avoidability,
     "moving_heldout": beyond.moving_heldout, "moving_speeds": beyond.moving_speeds,
     "moving_levers": beyond.moving_levers, "timeline": beyond.timeline,
-    "tuning": beyond.tuning, "beyond": beyond.overview}
+    "tuning": beyond.tuning, "beyond": beyond.overview,
+    "passages": beyond.passage_pace, "moving_design": beyond.moving_design_settings,
+    "moving_definition": beyond.moving_definition, "guidance_pace": beyond.lateral_pace,
+    "studies": study_commands,
+    "moving_commands": lambda: commands(
+        "studies/moving_obstacles", "studies/moving_speeds", "studies/moving_heldout",
+        "studies/avoidability"),
+    "moving_speed_commands": lambda: commands("solver_speed/crossing",
+                                              "solver_speed/swept_pillar"),
+    "design_commands": lambda: commands("studies/moving_levers",
+                                        "studies/moving_obstacles_definition"),
+    "tuning_command": lambda: commands("tuning")}
 """Every generated block of the README, by name."""
 
 _BLOCK = re.compile(r"(<!-- begin (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-- end (?P=name) -->)",
