@@ -130,11 +130,6 @@ def test_citation_names_this_version_the_license_and_the_papers_authors():
 
 # --- Short sentences ---------------------------------------------------------------------
 
-OWN_PAGES = ("README.md", "environment.md", "docs/contributing.md", "docs/reproduction.md",
-             "docs/solvers.md", "docs/usage.md", "docs/failures.md", "docs/own_model.md",
-             "docs/api.md", "docs/glossary.md")
-"""The pages held to the limits below (the others are measured and printed)."""
-
 MEDIAN_WORDS, MAX_WORDS, MAX_LINES = 22, 60, 250
 """A page's median sentence, its longest sentence (words) and its length (lines)."""
 
@@ -223,8 +218,6 @@ def test_sentences_are_cut_where_a_sentence_ends():
 def test_sentences_are_short_and_pages_are_not_long(page):
     median, longest, lines, sentence = sentence_figures(page)
     print(f"\n{page}: median {median:g} words, max {longest}, {lines} lines")
-    if page not in OWN_PAGES:
-        return
     assert median <= MEDIAN_WORDS, f"{page}: the median sentence has {median:g} words"
     assert longest <= MAX_WORDS, f"{page}: a sentence of {longest} words: {sentence}"
     assert lines <= MAX_LINES, f"{page}: {lines} lines"
@@ -294,9 +287,6 @@ def test_the_readme_gives_every_command_one_line():
 NO_RUN = "<!-- no-run -->"
 """Put on the line before a ```python block that cannot run in a test (a long flight)."""
 
-NOT_YET_RUN = {"docs/studies/index.md": "its study flies 20 full passages: it needs a step "
-                                        "limit (passage_spec's max_steps) or " + NO_RUN}
-"""Pages whose blocks are left out for now, and why."""
 
 _BLOCK = re.compile(r"(?:^(<!-- no-run -->)\s*\n)?^```python\n(.*?)^```", re.S | re.M)
 
@@ -307,7 +297,7 @@ def python_blocks() -> list[tuple[str, int, str]]:
     for page in all_pages():
         text = (ROOT / page).read_text(encoding="utf-8")
         for match in _BLOCK.finditer(text):
-            if not match.group(1) and page not in NOT_YET_RUN:
+            if not match.group(1):
                 found.append((page, text[:match.start(2)].count("\n") + 1, match.group(2)))
     return found
 
