@@ -225,7 +225,10 @@ def plot_regions(clouds, names=None, start=None, targets=None, ax=None):
                    depthshade=False)
         drawn.append(targets)
     every = np.concatenate(drawn)
-    lo, hi = every.min(axis=0) - 0.5, every.max(axis=0) + 0.5
+    # Each axis spans at least a quarter of the longest, so a flat scan keeps some depth.
+    mid = (every.min(axis=0) + every.max(axis=0)) / 2
+    half = np.maximum(np.ptp(every, axis=0) / 2 + 0.5, np.ptp(every, axis=0).max() / 8)
+    lo, hi = mid - half, mid + half
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_zlim(lo[2], hi[2])

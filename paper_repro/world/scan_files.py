@@ -29,6 +29,10 @@ SCANS_INSTALL = 'python -m pip install -e ".[scans]" -c constraints.txt'
 """The command that installs the readers of PLY and PCD files (the extra ``scans``)."""
 
 
+class _BadContent(ValueError):
+    """A file parsed, but what it holds is not a scan (the readers' own refusals)."""
+
+
 class MissingExtraError(ImportError, ValueError):
     """A reader of the optional extra ``scans`` is not installed. It is a ``ValueError`` too, so
     the command line reports it in one line, as any other refused input."""
@@ -63,11 +67,12 @@ def read_scan(path) -> np.ndarray:
         points = reader(path)
     except MissingExtraError:
         raise
-    except ValueError as exc:
+    except _BadContent as exc:
         raise ValueError(f"scan file {str(path)!r}: {exc}") from None
-    except Exception as exc:  # a parser's own error (struct, EOF, its exception classes)
+    except Exception as exc:  # a parser's own error (struct, EOF, pydantic, its own classes)
+        first = (str(exc).strip().splitlines() or [""])[0]
         raise ValueError(f"scan file {str(path)!r} cannot be read as {suffix[1:].upper()}: "
-                         f"{type(exc).__name__}: {exc}") from None
+                         f"{type(exc).__name__}: {first}") from None
     return _checked(path, points)
 
 
@@ -86,7 +91,7 @@ def _read_npz(path: Path) -> np.ndarray:
             return np.column_stack([np.ravel(archive[k]) for k in "xyz"])
         if len(names) == 1:
             return _xyz_array(archive[names[0]], f"the array {names[0]!r}")
-    raise ValueError(f"must hold an array 'points' (m, 3), arrays 'x', 'y', 'z', or a single "
+    raise _BadContent(f"must hold an array 'points' (m, 3), arrays 'x', 'y', 'z', or a single "
                      f"(m, 3) array, got arrays {names}")
 
 
@@ -101,18 +106,18 @@ def _read_text(path: Path) -> np.ndarray:
             if columns is None and not rows and not _numeric(fields[0]):
                 names = [f.strip("\"'").lower() for f in fields]
                 if not {"x", "y", "z"} <= set(names):
-                    raise ValueError(f"the header line {number} must name columns x, y and z, "
+                    raise _BadContent(f"the header line {number} must name columns x, y and z, "
                                      f"got {fields}")
                 columns = [names.index(k) for k in "xyz"]
                 continue
             take = columns or [0, 1, 2]
             if len(fields) <= max(take):
-                raise ValueError(f"line {number} has {len(fields)} column(s), needs x, y, z "
+                raise _BadContent(f"line {number} has {len(fields)} column(s), needs x, y, z "
                                  f"(columns {[c + 1 for c in take]}): {text[:60]!r}")
             try:
                 rows.append([float(fields[c]) for c in take])
             except ValueError:
-                raise ValueError(f"line {number} holds a value that is not a number: "
+                raise _BadContent(f"line {number} holds a value that is not a number: "
                                  f"{text[:60]!r}") from None
     return np.array(rows, float).reshape(-1, 3)
 
@@ -122,11 +127,11 @@ def _read_ply(path: Path) -> np.ndarray:
     data = plyfile.PlyData.read(str(path))
     elements = {e.name: e for e in data.elements}
     if "vertex" not in elements:
-        raise ValueError(f"has no 'vertex' element (has {sorted(elements)})")
+        raise _BadContent(f"has no 'vertex' element (has {sorted(elements)})")
     vertex = elements["vertex"]
     names = [p.name for p in vertex.properties]
     if not {"x", "y", "z"} <= set(names):
-        raise ValueError(f"its 'vertex' element must have the properties x, y and z, got "
+        raise _BadContent(f"its 'vertex' element must have the properties x, y and z, got "
                          f"{names}")
     return np.column_stack([np.asarray(vertex[k], float) for k in "xyz"])
 
@@ -136,7 +141,7 @@ def _read_pcd(path: Path) -> np.ndarray:
     cloud = pypcd4.PointCloud.from_path(path)
     names = list(cloud.fields)
     if not {"x", "y", "z"} <= set(names):
-        raise ValueError(f"must have the fields x, y and z, got {names}")
+        raise _BadContent(f"must have the fields x, y and z, got {names}")
     return np.asarray(cloud.numpy(("x", "y", "z")), float).reshape(-1, 3)
 
 
@@ -164,14 +169,14 @@ def _xyz_array(array: np.ndarray, what: str) -> np.ndarray:
     """(m, 3) points of a plain (m, 3) array or of a structured array with fields x, y, z."""
     if array.dtype.names is not None:
         if not {"x", "y", "z"} <= set(array.dtype.names):
-            raise ValueError(f"{what} must have the fields x, y and z, got "
+            raise _BadContent(f"{what} must have the fields x, y and z, got "
                              f"{list(array.dtype.names)}")
         return np.column_stack([np.ravel(array[k]).astype(float) for k in "xyz"])
     if array.ndim != 2 or array.shape[1] != 3:
-        raise ValueError(f"{what} must have the shape (m, 3) (columns x, y, z), got "
+        raise _BadContent(f"{what} must have the shape (m, 3) (columns x, y, z), got "
                          f"{array.shape}")
     if not np.issubdtype(array.dtype, np.number) or np.iscomplexobj(array):
-        raise ValueError(f"{what} must hold real numbers, got dtype {array.dtype}")
+        raise _BadContent(f"{what} must hold real numbers, got dtype {array.dtype}")
     return array.astype(float)
 
 
