@@ -338,3 +338,16 @@ def test_a_ply_and_a_pcd_fly_through_run_cloud_and_stay_clear(tmp_path, rng, cap
     assert result.visible_points.max() > 0
     assert result.clearance.min() > COLLISION_CLEARANCE
     assert result.x[-1, 0] >= result.scene.finish[0][0] - 0.05
+
+
+def test_the_pages_example_runs_and_prints_what_the_page_says(capsys):
+    """docs/own_scene.md: its Python block writes a PLY of two boxes and builds their scene."""
+    import re
+    from pathlib import Path
+
+    page = (Path(__file__).parents[1] / "docs" / "own_scene.md").read_text()
+    (block,) = re.findall(r"```python\n(.*?)```", page, re.S)
+    exec(compile(block, "docs/own_scene.md", "exec"), {})
+    printed = capsys.readouterr().out.splitlines()
+    assert [line.split()[0] for line in printed] == ["scan-0", "scan-1"]
+    assert "`scan-0` and `scan-1`" in page
