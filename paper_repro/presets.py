@@ -1,4 +1,5 @@
-"""Named configurations: the printed set-up, and the one that reproduces the paper's clock.
+"""Named configurations: the printed set-up, the one that reproduces the paper's clock, and
+the moving study's design for regions predicted to move.
 
 ``paper`` (the default everywhere) is :class:`~paper_repro.config.Config` as printed in
 Section V. Under it the paper mission lasts ≈1,390 s of flight, where the paper's time axes
@@ -22,6 +23,11 @@ point), so three single changes reach it; flown on the ``paper`` scene with its 
 
 N = 43 changes one printed integer, keeps the prediction model's step equal to the sampling
 period as printed, and lands closest to 500 s.
+
+``moving-design`` is the barrier the moving study flies beside the paper's (notebook
+16_moving_obstacles): :func:`moving_design` on its random crossings, the same controller
+(:func:`moving_design_controller`) on any other scene. It is described here, once, and the
+study (:mod:`paper_repro.studies.catalogue`) flies it from here.
 
 Select one with ``--preset NAME`` (``run``, ``reproduce``, ``study``) or :func:`preset`.
 """
@@ -60,6 +66,20 @@ def _paper_timeline(config: Config) -> Config:
     return dataclasses.replace(config, nmpc=dataclasses.replace(config.nmpc, horizon=43))
 
 
+def _moving_design(config: Config) -> Config:
+    """The moving study's design for ``config``'s metric: :func:`moving_design` on a
+    ``random-crossing`` scene, its controller (:func:`moving_design_controller`) on any other
+    (only that scene's crossings are timed). A static prediction becomes ``"kalman"``: the
+    design acts on predicted velocities, and the Kalman filter needs nothing but the scans."""
+    if config.nmpc.prediction == "static":
+        config = dataclasses.replace(config, nmpc=dataclasses.replace(
+            config.nmpc, prediction="kalman"))
+    metric = config.distance.metric
+    if config.simulation.scenario == "random-crossing":
+        return moving_design(config, metric)
+    return moving_design_controller(config, metric)
+
+
 PRESETS: dict[str, Preset] = {
     "paper": Preset(
         "paper", "the parameters as printed in Section V (N = 35, T_s = 0.01 s, "
@@ -68,6 +88,10 @@ PRESETS: dict[str, Preset] = {
         "paper-timeline", "the printed parameters with the horizon N = 43 instead of 35 "
         "(N·T_s = 0.43 s): the smallest change of one printed number that brings the paper "
         "mission within 10 % of the paper's 500 s (notebook 11_timeline)", _paper_timeline),
+    "moving-design": Preset(
+        "moving-design", "the barrier this package proposes for regions predicted to move "
+        "(MOVING_DESIGN for the metric, a 0.015 s prediction step), as the moving study flies "
+        "it; a static prediction becomes kalman", _moving_design),
 }
 """Every preset by name; ``paper`` is the default."""
 
@@ -96,3 +120,56 @@ def check_name(name: str) -> str:
     if not (isinstance(name, str) and name in PRESETS):
         raise ValueError(f"preset must be one of {sorted(PRESETS)}, got {name!r}")
     return name
+
+
+# --- the moving study's design (studies.catalogue flies it) --------------------------------
+
+MOVING_DESIGN = {"smooth": {"moving_d_min": 3.0, "sweep_time": 1.0},
+                 "euclidean": {"moving_d_min": 2.0, "equilibrium_lookahead": 3.0,
+                               "sweep_time": 1.0}}
+"""The barrier this package proposes for regions predicted to move, per metric
+(``BarrierParams`` settings), flown by the moving study beside the paper's barrier with the
+longer prediction of :data:`MOVING_PREDICTION_TS`:
+
+* smoothed D (the paper's proposal): a margin of 3 m² (√6 = 2.45 m) for a moving region;
+* Euclidean ½d²: a margin of 2 m², and the artificial equilibrium held clear of where the
+  region goes over the 3 s after the horizon. The margin alone leaves the UAV in a pincer of
+  two regions (their nearest-point gradients cancel); the look-ahead pulls the plan out of
+  both paths. With the smoothed metric the same pair collided with the Kalman prediction,
+  whose velocity error the 3 s look-ahead magnifies;
+* both: the region replaced by the path it sweeps over the next second (``sweep_time``). A
+  region closing on the UAV from the side pushes it, through ∇D = y − Π, along the region's
+  own velocity, a race the UAV loses to a faster region; the swept path's nearest point lies
+  beside it, so the escape leaves the region's path instead."""
+
+MOVING_PREDICTION_TS = 0.015
+"""s, the prediction step of the design (``NMPCParams.prediction_ts``): N = 35 steps span
+0.525 s instead of 0.35 s. Every prediction ends at rest at the artificial equilibrium, and
+lateral motion passes through four integrations, so the span caps how fast the UAV moves
+sideways: over 0.35 s below the speed of the faster regions (they cross at 0.5-1.5 m/s),
+which then catch it from the side however it steers; over 0.525 s above it. The lateral time
+constant falls with it (:func:`paper_repro.analysis.clock.clock`), hence
+:data:`MOVING_APPROACH_TIME`."""
+
+MOVING_APPROACH_TIME = 27.0
+"""s, the pace the design's crossings are timed to (``SimulationParams.approach_time``; the
+paper's controller's crossings keep 150 s). Timed for the printed set-up, the regions reach
+the line after the faster UAV has passed and never meet it. The study's table counts, per run,
+whether a region came within the LiDAR's range (``encounters``), so that a clear run that met
+no region is not read as an avoidance."""
+
+
+def moving_design_controller(config: Config, metric: str) -> Config:
+    """``config`` with the design's controller: the barrier of :data:`MOVING_DESIGN` for
+    ``metric`` and the prediction step :data:`MOVING_PREDICTION_TS`."""
+    return dataclasses.replace(
+        config, barrier=dataclasses.replace(config.barrier, **MOVING_DESIGN[metric]),
+        nmpc=dataclasses.replace(config.nmpc, prediction_ts=MOVING_PREDICTION_TS))
+
+
+def moving_design(config: Config, metric: str) -> Config:
+    """``config`` (a ``random-crossing`` passage) flown with the design: its controller
+    (:func:`moving_design_controller`) on crossings timed to :data:`MOVING_APPROACH_TIME`."""
+    config = moving_design_controller(config, metric)
+    return dataclasses.replace(config, simulation=dataclasses.replace(
+        config.simulation, approach_time=MOVING_APPROACH_TIME))

@@ -84,3 +84,51 @@ def test_a_study_starts_from_the_preset(name):
 
 class _Stop(Exception):
     """Ends a reproduce call once its folders are known (nothing is flown or drawn)."""
+
+
+def test_moving_design_is_the_moving_studys_design():
+    """One description: the preset applied to each paper-barrier run of the moving study gives
+    the study's design run of the same crossing, prediction and metric; and ``run`` builds the
+    same configuration from the shell."""
+    import argparse
+
+    from paper_repro.cli.parser import COMMANDS
+    from paper_repro.cli.run import run_config
+    from paper_repro.studies.catalogue import make_study
+
+    specs = make_study("moving_obstacles", quick=True).specs
+    keys = ("metric", "scene_seed", "prediction", "barrier")
+    labels = [{k: v for k, v in s.labels if k in keys} for s in specs]
+    design = [(s, lab) for s, lab in zip(specs, labels, strict=True) if lab["barrier"] == "design"]
+    assert design
+    parser = argparse.ArgumentParser()
+    COMMANDS["run"].add_arguments(parser)
+    for spec, lab in design:
+        paper = next(s for s, other in zip(specs, labels, strict=True)
+                     if other == {**lab, "barrier": "paper"})
+        assert presets.preset("moving-design", base=paper.config) == spec.config
+        sim = spec.config.simulation
+        args = parser.parse_args([
+            "--out", "unused", "--preset", "moving-design", "--scenario", sim.scenario,
+            "--kind", sim.kind, "--seed", str(sim.seed), "--metric", lab["metric"],
+            "--prediction", lab["prediction"], "--line-search",
+            "--set", f"simulation.max_steps={sim.max_steps}"])
+        assert run_config(args) == spec.config
+
+
+def test_moving_design_on_another_scene_is_the_designs_controller():
+    from paper_repro.studies.catalogue import moving_design_controller
+
+    printed = Config()
+    kalman = dataclasses.replace(printed, nmpc=dataclasses.replace(printed.nmpc,
+                                                                   prediction="kalman"))
+    for metric in ("smooth", "euclidean"):
+        base = dataclasses.replace(kalman, distance=dataclasses.replace(kalman.distance,
+                                                                        metric=metric))
+        assert presets.preset("moving-design", base=base) == moving_design_controller(
+            base, metric)
+    # a static prediction hands the design no velocity: the preset predicts with the tracker
+    assert presets.preset("moving-design").nmpc.prediction == "kalman"
+    with pytest.raises(ValueError, match="needs nmpc.prediction 'oracle' or 'kalman'"):
+        dataclasses.replace(presets.preset("moving-design"), nmpc=dataclasses.replace(
+            printed.nmpc, prediction="static", prediction_ts=0.015))

@@ -1,14 +1,34 @@
-"""``python -m paper_repro run``: fly one closed-loop mission and save its result."""
+"""``python -m paper_repro run``: fly one closed-loop mission and save its result.
+
+The scene is a named one (``--scenario``) or your own, from scan files (``--cloud``, see
+:mod:`paper_repro.world.scan_regions`). The configuration is built in this order: the scene
+and the options below, then the preset (``--preset``), then every ``--set``.
+"""
 
 from __future__ import annotations
 
 import dataclasses
 
-from paper_repro.cli.args import non_negative_int, output_directory, positive_int
-from paper_repro.config import PREDICTIONS, QP_SOLVERS
+from paper_repro.cli.args import (
+    non_negative_int,
+    output_directory,
+    point,
+    positive_float,
+    positive_int,
+    setting,
+    with_settings,
+)
+from paper_repro.config import GUIDES, PREDICTIONS, QP_SOLVERS, Config
+from paper_repro.world.scan_regions import REGION_VOXEL, SCAN_SCENARIO
 from paper_repro.world.scenarios import SCENARIOS
 
 HELP = "fly one closed-loop mission and save its result"
+
+DESCRIPTION = """Fly one closed-loop mission and save its result (result.npz, config.json).
+
+Your own scene: --cloud FILE (repeatable; .npy .npz .csv .xyz .txt .ply .pcd) with --start and
+--target; the flight is a passage that ends 2 m past the clouds. Any setting of the
+configuration: --set section.field=value (repeatable), e.g. --set distance.eta=0.2."""
 
 
 def add_arguments(parser) -> None:
@@ -19,9 +39,15 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=non_negative_int, default=None,
                         help="scene seed (Halton clouds; the layout of a random scene); default "
                              "the config's")
-    parser.add_argument("--kind", choices=("mission", "passage"), default="mission",
-                        help="mission: reach every target; passage: end 2 m past a random "
-                             "scene's obstacle field")
+    parser.add_argument("--kind", choices=("mission", "passage"), default=None,
+                        help="mission: reach every target; passage: end 2 m past the "
+                             "obstacles (a random scene's, or the clouds'); default mission, "
+                             "passage with --cloud")
+    add_cloud_arguments(parser)
+    parser.add_argument("--start", type=point, default=None, metavar="X,Y,Z",
+                        help="with --cloud: the start, m (in the workspace, outside the clouds)")
+    parser.add_argument("--target", type=point, default=None, metavar="X,Y,Z",
+                        help="with --cloud: the target, m, more than 2 m past the clouds")
     parser.add_argument("--metric", choices=("smooth", "euclidean"), default="smooth")
     parser.add_argument("--solver", choices=("rti", "reference"), default="rti",
                         help="rti: Gauss-Newton real-time iteration (default); reference: "
@@ -42,39 +68,102 @@ def add_arguments(parser) -> None:
     parser.add_argument("--window", type=float, default=None, metavar="W",
                         help="smooth sensing window w, m, in [0, LiDAR range) (0: the paper's "
                              "hard cut-off); default the preset's")
+    parser.add_argument("--map-voxel", type=float, default=None, metavar="M",
+                        help="voxel side of the local map, m, in (0, LiDAR range); 0: no map, "
+                             "the raw scan (sensor.map_voxel); default the preset's")
+    parser.add_argument("--guide", choices=GUIDES, default=None, metavar="PLANNER",
+                        help=f"what hands the NMPC its set-point, one of {', '.join(GUIDES)} "
+                             "(guide.planner; grid needs --map-voxel); default the preset's")
     parser.add_argument("--max-steps", type=positive_int, default=None,
                         help="limit on closed-loop steps (default: the config's max_steps)")
     parser.add_argument("--out", required=True, help="directory for result.npz and config.json")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--preset", default="paper", metavar="NAME",
                         help="named set-up (paper_repro.presets): 'paper' (default, the "
-                             "printed parameters) or 'paper-timeline' (the paper's clock)")
+                             "printed parameters), 'paper-timeline' (the paper's clock) or "
+                             "'moving-design' (the moving study's barrier)")
+    parser.add_argument("--set", type=setting, action="append", default=[], dest="settings",
+                        metavar="SECTION.FIELD=VALUE",
+                        help="any field of the configuration (paper_repro.config.Config), "
+                             "applied last, checked as the dataclasses check it; repeatable")
+
+
+def add_cloud_arguments(parser) -> None:
+    """``--cloud`` and its placement, shared by ``run`` and ``scene``."""
+    parser.add_argument("--cloud", action="append", default=[], metavar="FILE",
+                        help="a scan file (repeatable): its points become the scene's regions")
+    parser.add_argument("--cloud-scale", type=positive_float, default=1.0, metavar="S",
+                        help="scale s of the placement y = s·p + offset (e.g. 0.001 for mm)")
+    parser.add_argument("--cloud-offset", type=point, default=(0.0, 0.0, 0.0),
+                        metavar="X,Y,Z", help="offset of the placement, m (default 0,0,0)")
+    parser.add_argument("--region-voxel", type=positive_float, default=REGION_VOXEL,
+                        metavar="H", help="voxel side h, m, of the rule that splits the scans "
+                                          f"into regions (default {REGION_VOXEL:g})")
 
 
 def main(args) -> int:
-    """Fly the mission the options describe; every option (and the config it makes) is
-    checked before anything is built."""
-    from paper_repro.presets import preset
+    """Fly the mission the options describe; every option, the config it makes and the scene
+    are checked before anything is built."""
     from paper_repro.sim.loop import simulate
 
-    cfg = preset(args.preset)
-    sim = cfg.simulation
-    cfg = dataclasses.replace(
-        cfg,
-        distance=dataclasses.replace(
-            cfg.distance, metric=args.metric,
-            window=cfg.distance.window if args.window is None else args.window),
-        nmpc=dataclasses.replace(
-            cfg.nmpc,
-            prediction=cfg.nmpc.prediction if args.prediction is None else args.prediction),
-        solver=dataclasses.replace(cfg.solver, nlp_solver=args.solver,
-                                   qp_solver=args.qp_solver, line_search=args.line_search),
-        simulation=dataclasses.replace(
-            sim, scenario=args.scenario, kind=args.kind,
-            seed=sim.seed if args.seed is None else args.seed),
-    )
+    cfg = run_config(args)
+    scene = cloud_mission(args, cfg) if args.cloud else None
     out = output_directory("--out", args.out)
-    result = simulate(cfg, max_steps=args.max_steps,
+    result = simulate(cfg, max_steps=args.max_steps, scene=scene,
                       progress=False if args.no_progress else None)
     print(f"{result.summary()} -> {result.save(out)}")
     return 0
+
+
+def run_config(args) -> Config:
+    """The configuration of ``run``'s options: the scene and the options, then the preset,
+    then ``--set``."""
+    from paper_repro.presets import preset
+
+    if not args.cloud:
+        for option, value in (("--start", args.start), ("--target", args.target)):
+            if value is not None:
+                raise ValueError(f"{option} needs --cloud (a named scene has its own)")
+    base = Config()
+    sim = base.simulation
+    kind = args.kind or ("passage" if args.cloud else "mission")
+    scenario = SCAN_SCENARIO if args.cloud else args.scenario
+    base = dataclasses.replace(
+        base,
+        distance=dataclasses.replace(base.distance, metric=args.metric),
+        solver=dataclasses.replace(base.solver, nlp_solver=args.solver,
+                                   qp_solver=args.qp_solver, line_search=args.line_search),
+        simulation=dataclasses.replace(sim, scenario=scenario, kind=kind,
+                                       seed=sim.seed if args.seed is None else args.seed))
+    cfg = preset(args.preset, base)
+    options = [(section, field, value, f"{option} {value}")
+               for option, section, field, value in (
+                   ("--window", "distance", "window", args.window),
+                   ("--prediction", "nmpc", "prediction", args.prediction),
+                   ("--map-voxel", "sensor", "map_voxel", args.map_voxel),
+                   ("--guide", "guide", "planner", args.guide)) if value is not None]
+    return with_settings(cfg, options + list(args.settings))  # checked together: --set wins
+
+
+def cloud_mission(args, config: Config):
+    """The scene of ``--cloud`` files from ``--start`` to ``--target``, checked: both in the
+    workspace (:func:`~paper_repro.sim.checks.check_setup`) and farther than the rotor radius
+    from every cloud point (:func:`~paper_repro.sim.checks.setup_hazards`)."""
+    from paper_repro.sim.checks import check_setup, setup_hazards
+    from paper_repro.world.scan_regions import scan_scene
+
+    for option, value in (("--start", args.start), ("--target", args.target)):
+        if value is None:
+            raise ValueError(f"--cloud needs {option} X,Y,Z (m, in the workspace)")
+    scene = scan_scene(args.cloud, args.start, args.target, config, args.cloud_scale,
+                       args.cloud_offset, args.region_voxel)
+    check_setup(config, scene)
+    hazards = setup_hazards(config, scene)
+    arm = config.quadrotor.arm
+    for option, clearance in (("--start", hazards["start_clearance_m"]),
+                              ("--target", hazards["target_clearance_m"][0])):
+        if clearance < arm:
+            raise ValueError(f"{option} lies {clearance:.3g} m from a cloud point, within the "
+                             f"rotor radius {arm:g} m (quadrotor.arm): it must lie outside "
+                             "the clouds")
+    return scene

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import matplotlib.pyplot as plt
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -196,6 +197,49 @@ def view_window(result, width: float = 20.0, before: float = 1.0) -> tuple[float
 
 
 # --- summary figures ------------------------------------------------------------------------
+
+def plot_regions(clouds, names=None, start=None, targets=None, ax=None):
+    """A scene's regions in 3-D, one colour each (as ``python -m paper_repro scene`` draws a
+    scan split into regions), with the start and targets when given.
+
+    Parameters
+    ----------
+    clouds : sequence of (m_i, 3) arrays, m.  names : one label per region (default its index).
+    start : (3,) m, or None.  targets : (k, 3) m, or None.
+    ax : a 3-D Axes to draw into (a new figure if omitted).
+    """
+    fig, ax = axes3d_or_new(ax)
+    names = names if names is not None else [str(i) for i in range(len(clouds))]
+    colours = plt.get_cmap("tab10")
+    for i, (cloud, name) in enumerate(zip(clouds, names, strict=True)):
+        ax.scatter(*np.asarray(cloud).T, s=3, color=colours(i % 10), depthshade=False,
+                   label=f"{name} ({len(cloud)} points)" if i < 10 else None)
+    drawn = [np.asarray(c, float) for c in clouds]
+    if start is not None:
+        ax.scatter(*np.asarray(start, float), s=40, marker="o", color="tab:green",
+                   label="start", depthshade=False)
+        drawn.append(np.atleast_2d(np.asarray(start, float)))
+    if targets is not None:
+        targets = np.atleast_2d(np.asarray(targets, float))
+        ax.scatter(*targets.T, s=90, marker="*", color="tab:purple", label="targets",
+                   depthshade=False)
+        drawn.append(targets)
+    every = np.concatenate(drawn)
+    # Each axis spans at least a quarter of the longest, so a flat scan keeps some depth.
+    mid = (every.min(axis=0) + every.max(axis=0)) / 2
+    half = np.maximum(np.ptp(every, axis=0) / 2 + 0.5, np.ptp(every, axis=0).max() / 8)
+    lo, hi = mid - half, mid + half
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ax.set_box_aspect(tuple(hi - lo))
+    for set_label, label in zip((ax.set_xlabel, ax.set_ylabel, ax.set_zlabel), AXIS_LABELS,
+                                strict=True):
+        set_label(label)
+    ax.set_title(f"{len(clouds)} region(s)", fontsize="medium")
+    ax.legend(loc="upper left", fontsize="small")
+    return fig
+
 
 def plot_solve_times(results, ax=None, max_points: int = MAX_POINTS):
     """The tail of the solve times: the share of the steps whose controller call took at

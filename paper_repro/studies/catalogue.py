@@ -9,6 +9,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from paper_repro.config import PREDICTIONS, Config, GuideParams
+from paper_repro.presets import (  # noqa: F401 (the moving study's design, a preset too)
+    MOVING_APPROACH_TIME,
+    MOVING_DESIGN,
+    MOVING_PREDICTION_TS,
+    moving_design,
+    moving_design_controller,
+)
 from paper_repro.studies.runs import RunSpec
 from paper_repro.validation import require_int
 from paper_repro.world.lidar import NOISY_LIDAR
@@ -225,57 +232,6 @@ def sensing_window(quick: bool = False, scenes: int | None = None,
 
 """How the NMPC predicts a moving region (``NMPCParams.prediction``): not at all (the
 paper), with its true velocity, or with a Kalman filter on its visible centroid."""
-
-
-MOVING_DESIGN = {"smooth": {"moving_d_min": 3.0, "sweep_time": 1.0},
-                 "euclidean": {"moving_d_min": 2.0, "equilibrium_lookahead": 3.0,
-                               "sweep_time": 1.0}}
-"""The barrier this package proposes for regions predicted to move, per metric
-(``BarrierParams`` settings), flown by the moving study beside the paper's barrier with the
-longer prediction of :data:`MOVING_PREDICTION_TS`:
-
-* smoothed D (the paper's proposal): a margin of 3 m² (√6 = 2.45 m) for a moving region;
-* Euclidean ½d²: a margin of 2 m², and the artificial equilibrium held clear of where the
-  region goes over the 3 s after the horizon. The margin alone leaves the UAV in a pincer of
-  two regions (their nearest-point gradients cancel); the look-ahead pulls the plan out of
-  both paths. With the smoothed metric the same pair collided with the Kalman prediction,
-  whose velocity error the 3 s look-ahead magnifies;
-* both: the region replaced by the path it sweeps over the next second (``sweep_time``). A
-  region closing on the UAV from the side pushes it, through ∇D = y − Π, along the region's
-  own velocity, a race the UAV loses to a faster region; the swept path's nearest point lies
-  beside it, so the escape leaves the region's path instead."""
-
-MOVING_PREDICTION_TS = 0.015
-"""s, the prediction step of the design (``NMPCParams.prediction_ts``): N = 35 steps span
-0.525 s instead of 0.35 s. Every prediction ends at rest at the artificial equilibrium, and
-lateral motion passes through four integrations, so the span caps how fast the UAV moves
-sideways: over 0.35 s below the speed of the faster regions (they cross at 0.5-1.5 m/s),
-which then catch it from the side however it steers; over 0.525 s above it. The lateral time
-constant falls with it (:func:`paper_repro.analysis.clock.clock`), hence
-:data:`MOVING_APPROACH_TIME`."""
-
-MOVING_APPROACH_TIME = 27.0
-"""s, the pace the design's crossings are timed to (``SimulationParams.approach_time``; the
-paper's controller's crossings keep 150 s). Timed for the printed set-up, the regions reach
-the line after the faster UAV has passed and never meet it. The study's table counts, per run,
-whether a region came within the LiDAR's range (``encounters``), so that a clear run that met
-no region is not read as an avoidance."""
-
-
-def moving_design_controller(config: Config, metric: str) -> Config:
-    """``config`` with the design's controller: the barrier of :data:`MOVING_DESIGN` for
-    ``metric`` and the prediction step :data:`MOVING_PREDICTION_TS`."""
-    return dataclasses.replace(
-        config, barrier=dataclasses.replace(config.barrier, **MOVING_DESIGN[metric]),
-        nmpc=dataclasses.replace(config.nmpc, prediction_ts=MOVING_PREDICTION_TS))
-
-
-def moving_design(config: Config, metric: str) -> Config:
-    """``config`` (a ``random-crossing`` passage) flown with the design: its controller
-    (:func:`moving_design_controller`) on crossings timed to :data:`MOVING_APPROACH_TIME`."""
-    config = moving_design_controller(config, metric)
-    return dataclasses.replace(config, simulation=dataclasses.replace(
-        config.simulation, approach_time=MOVING_APPROACH_TIME))
 
 
 def moving_obstacles(quick: bool = False, scenes: int | None = None,

@@ -8,6 +8,8 @@ the LiDAR sees of them, and what the robot makes of it: a map and a guide.
 ``scenarios``      the named scenes, :func:`make_scene`
 ``random_scenes``  seeded random obstacle fields across a straight flight
 ``planar``         a planar scene (p = 2) for a ground robot
+``scan_files``     :func:`read_scan`, points from .npy, .npz, .csv/.xyz/.txt, .ply, .pcd
+``scan_regions``   :func:`scan_scene`, scan files placed, split into regions, thinned
 ``lidar``          :class:`Lidar`, the virtual LiDAR (optionally imperfect)
 ``tracking``       :class:`RegionTracker`, a Kalman filter of the regions' velocities
 ``local_map``      :class:`VoxelMap`, a bounded log-odds map of the scans (an option)
@@ -27,6 +29,14 @@ from paper_repro.world.random_scenes import (
     crossing_motions,
     passage_progress,
     random_scene,
+)
+from paper_repro.world.scan_files import SCAN_SUFFIXES, read_scan
+from paper_repro.world.scan_regions import (
+    REGION_VOXEL,
+    place_scan,
+    scan_regions,
+    scan_scene,
+    split_regions,
 )
 from paper_repro.world.scenarios import (
     CROSSING_SPEED,
@@ -72,16 +82,23 @@ __all__ = [
     "ONCOMING_SPEED",
     "paper_scene",
     "passage_progress",
+    "place_scan",
     "planar_scene",
     "random_scene",
+    "read_scan",
     "RandomSceneParams",
     "Region",
+    "REGION_VOXEL",
     "REGION_KINDS",
     "RegionTracker",
+    "SCAN_SUFFIXES",
+    "scan_regions",
+    "scan_scene",
     "SCENARIOS",
     "Scene",
     "shape_from_dict",
     "shape_to_dict",
+    "split_regions",
     "Union",
     "VoxelMap",
     "WORKSPACE_LOWER",
