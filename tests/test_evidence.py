@@ -242,3 +242,48 @@ def test_the_paper_summary_regenerates_byte_for_byte(tmp_path):
     assert sorted(report.simulated) == ["paper-euclidean", "paper-smooth"]
     committed = (paths.figures_dir() / "summary.csv").read_bytes()
     assert (tmp_path / "figures" / "summary.csv").read_bytes() == committed
+
+
+def test_a_machine_copy_stands_only_for_the_committed_file_it_was_flown_for(tmp_path,
+                                                                              monkeypatch):
+    """On a machine of another signature the flight is compared with its machine copy, and
+    only while the copy stands for the committed file as it is: a moved committed file (a
+    code change written with ``--write``), a copy changed by hand, or the machine that wrote
+    the golden flights compare with the committed file."""
+    from paper_repro.evidence import golden
+
+    shutil.copytree(paths.golden_dir(), tmp_path / "figures" / "golden")
+    monkeypatch.setenv(paths.ROOT_ENV, str(tmp_path))
+    folder, name = paths.golden_dir(), "paper-smooth"
+    main = folder / f"{name}.npy"
+    copy_dir = folder / golden.MACHINES / "c-test_numpy-test"
+    copy_dir.mkdir(parents=True)
+    copy = copy_dir / f"{name}.npy"
+    np.save(copy, np.load(main) + 1e-3)
+    entry = {"of": golden.sha256_of(main), "sha256": golden.sha256_of(copy)}
+    (copy_dir / "copies.json").write_text(json.dumps({"files": {name: entry}}))
+
+    monkeypatch.setattr(golden, "machine_signature", lambda: "c-test_numpy-test")
+    assert golden.reference_path(name) == copy
+    assert golden.reference_path("paper-euclidean") == folder / "paper-euclidean.npy"
+    np.save(copy, np.load(copy) + 1e-3)  # changed by hand: no longer the recorded copy
+    assert golden.reference_path(name) == main
+    np.save(copy, np.load(main) + 1e-3)
+    assert golden.reference_path(name) == copy
+    np.save(main, np.load(main) + 1e-6)  # the committed flight moved: the copy is retired
+    assert golden.reference_path(name) == main
+
+    monkeypatch.setattr(golden, "machine_signature", golden.golden_signature)
+    assert golden.reference_path(name) == main
+    with pytest.raises(ValueError, match="wrote the golden flights: use --write"):
+        golden.write_machine_copies([name])
+
+
+def test_the_machine_signature_names_the_c_and_numpys_instruction_sets():
+    from paper_repro._native import arch_flags
+    from paper_repro.evidence.golden import golden_signature, machine_signature
+
+    c, numpy_level = machine_signature().split("_numpy-")
+    assert c == "c-" + arch_flags()[0].removeprefix("-march=")
+    assert numpy_level in ("x86-64-v4", "x86-64-v3", "baseline")
+    assert golden_signature().startswith("c-") and "_numpy-" in golden_signature()

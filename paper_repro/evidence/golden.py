@@ -33,6 +33,20 @@ makes. Two things enforce it.
 
 A pure refactor leaves every golden flight within tolerance: the committed files, the hash,
 the stamps and the cache keys stay as they are, and nothing needs re-flying.
+
+**Machine copies.** Besides the code, two things set a flight's last bits: the instruction set
+the C is built for, and whether NumPy takes its AVX-512 paths (its float64 ``exp`` and
+``log`` are NumPy's own code there and the C library's elsewhere, and they differ in the last
+bit for some arguments). :func:`machine_signature` names both; ``golden.json`` records the
+signature of the machine that wrote the flights. Most flights absorb such a bit within
+tolerance; a flight whose solver makes a discrete choice on it (an active set, an interior
+point's iteration count) does not. On a machine of another signature, a flight flown with the
+same code is kept as a *machine copy* (``golden --machine-copy``), in
+``figures/golden/machines/<signature>/``, tied to the SHA-256 of the committed file it stands
+for. :func:`check_golden` compares with the copy there, and with the committed file wherever
+the copy is missing or stands for another file: a code change still moves the flight against
+its reference. The copies enter no hash: the evidence was made on the machine that wrote the
+golden flights.
 """
 
 from __future__ import annotations
@@ -54,6 +68,9 @@ POSITION_TOLERANCE = 1e-9
 """m: the largest position difference between a flight and its committed golden copy that
 still counts as the same flight (flights repeat bit for bit on one machine; the margin is for
 rounding between machines of the same kind)."""
+
+MACHINES = "machines"
+"""The folder of ``figures/golden/`` that holds the machine copies, one folder per signature."""
 
 INPUT_TOLERANCE = 1e-6
 """N (or the vehicle's input unit): the same for the inputs, whose rounding is amplified by
@@ -269,12 +286,13 @@ def check_golden(names=None) -> list[dict]:
     """Fly the golden flights (all, or ``names``) and compare them with the committed copies.
 
     Returns one dict per flight: ``name``, ``steps`` (flown / committed), ``position_error``
-    (m, max over the flight), ``input_error``, ``identical`` (bit for bit) and ``ok`` (same
-    length, within :data:`POSITION_TOLERANCE` and :data:`INPUT_TOLERANCE`)."""
+    (m, max over the flight), ``input_error``, ``identical`` (bit for bit), ``ok`` (same
+    length, within :data:`POSITION_TOLERANCE` and :data:`INPUT_TOLERANCE`) and
+    ``reference``, the file compared with (:func:`reference_path`)."""
     flown, rows = {}, []
     for flight in _select(names):
         new = flown[flight.name] = fly_golden(flight, flown)
-        path = golden_dir() / f"{flight.name}.npy"
+        path = reference_path(flight.name)
         old = np.load(path) if path.is_file() else np.zeros((0, new.shape[1]))
         npos = 3 if flight.vehicle == "quadrotor" else 2
         nx = 12 if flight.vehicle == "quadrotor" else 3
@@ -285,8 +303,73 @@ def check_golden(names=None) -> list[dict]:
                      "position_error": pos, "input_error": inp,
                      "identical": bool(same_shape and np.array_equal(new, old)),
                      "ok": bool(pos <= POSITION_TOLERANCE and inp <= INPUT_TOLERANCE),
-                     "flown": new})
+                     "reference": path, "flown": new})
     return rows
+
+
+def machine_signature() -> str:
+    """This machine's signature (module docstring, "Machine copies"): the ``-march`` the C is
+    built for (:func:`paper_repro._native.arch_flags`) and the highest x86-64 level NumPy
+    dispatches to, e.g. ``c-x86-64-v3_numpy-x86-64-v4``."""
+    from paper_repro._native import arch_flags
+
+    arch = arch_flags()[0].removeprefix("-march=")
+    found = set(np.show_config(mode="dicts").get("SIMD Extensions", {}).get("found") or ())
+    level = ("x86-64-v4" if "X86_V4" in found or any(f.startswith("AVX512") for f in found)
+             else "x86-64-v3" if "X86_V3" in found else "baseline")
+    return f"c-{arch}_numpy-{level}"
+
+
+def golden_signature() -> str:
+    """The signature of the machine that wrote the committed golden flights
+    (``golden.json``)."""
+    stored = json.loads((golden_dir() / "golden.json").read_text())
+    return stored.get("machine", "unknown")
+
+
+def reference_path(name: str) -> Path:
+    """The file a flight is compared with on this machine: its machine copy when this
+    machine's signature is not the one that wrote the golden flights and a copy stands for
+    the committed file as it is now; the committed file otherwise."""
+    main = golden_dir() / f"{name}.npy"
+    signature = machine_signature()
+    if not main.is_file() or signature == golden_signature():
+        return main
+    copies = _machine_copies(signature)
+    entry = copies.get("files", {}).get(name)
+    copy = golden_dir() / MACHINES / signature / f"{name}.npy"
+    if (entry is None or entry.get("of") != sha256_of(main) or not copy.is_file()
+            or entry.get("sha256") != sha256_of(copy)):
+        return main
+    return copy
+
+
+def write_machine_copies(names) -> list[dict]:
+    """Fly ``names`` and keep each as this machine's copy (module docstring): for flights the
+    code flies as the committed file does on the machine that wrote it, moved here only by
+    this machine's arithmetic. Refused on that machine itself, whose flights are the committed
+    files."""
+    signature = machine_signature()
+    if signature == golden_signature():
+        raise ValueError(f"this machine ({signature}) wrote the golden flights: use --write")
+    folder = golden_dir() / MACHINES / signature
+    folder.mkdir(parents=True, exist_ok=True)
+    copies = _machine_copies(signature)
+    files = copies.setdefault("files", {})
+    rows = check_golden(names)
+    for row in rows:
+        path = folder / f"{row['name']}.npy"
+        _atomic_save(path, row["flown"])
+        files[row["name"]] = {"of": sha256_of(golden_dir() / f"{row['name']}.npy"),
+                              "sha256": sha256_of(path)}
+        row["written"] = True
+    atomic_text(folder / "copies.json", json.dumps(copies, indent=1, sort_keys=True) + "\n")
+    return rows
+
+
+def _machine_copies(signature: str) -> dict:
+    path = golden_dir() / MACHINES / signature / "copies.json"
+    return json.loads(path.read_text()) if path.is_file() else {"machine": signature}
 
 
 def write_golden(names=None, force: bool = False) -> list[dict]:
@@ -306,6 +389,7 @@ def write_golden(names=None, force: bool = False) -> list[dict]:
                "layers": {layer: set_hash(_layer_files(files, layer))
                           for layer in LAYERS if layer},
                "position_tolerance_m": POSITION_TOLERANCE, "input_tolerance": INPUT_TOLERANCE,
+               "machine": machine_signature(),
                "flights": {f.name: f.description for f in GOLDEN_FLIGHTS}}
     atomic_text(folder / "golden.json", json.dumps(payload, indent=1) + "\n")
     return rows
