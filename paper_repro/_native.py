@@ -37,6 +37,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from paper_repro.paths import atomic_text, sha256_of
+
 FLAGS = ("-O3", "-fPIC", "-shared")
 """Flags of every build, besides :func:`arch_flags`."""
 PORTABLE_ARCH = "x86-64-v3"
@@ -138,7 +140,7 @@ def load_library(name: str, source: bytes, key_extra: bytes = b"",
         # Never hand the loader an unchecked file: mapping a truncated library can kill the
         # process (SIGBUS) instead of raising.
         if record.is_file():
-            if record.read_text().strip() != _sha256(lib):
+            if record.read_text().strip() != sha256_of(lib):
                 raise OSError("it does not match the SHA-256 recorded when it was built")
         elif not _whole_elf(lib):
             raise OSError("it is shorter than its ELF header says (truncated)")
@@ -168,10 +170,7 @@ def function_source(fn: ca.Function) -> bytes:
 
 def _write_digest(built: Path, lib: Path) -> None:
     """Record the SHA-256 of ``built`` as ``<lib>.sha256`` (atomically)."""
-    record = lib.with_name(f"{lib.name}.sha256")
-    tmp = record.with_name(f".{record.name}.{os.getpid()}.tmp")
-    tmp.write_text(_sha256(built) + "\n")
-    os.replace(tmp, record)
+    atomic_text(lib.with_name(f"{lib.name}.sha256"), sha256_of(built) + "\n")
 
 
 def _whole_elf(path: Path) -> bool:
@@ -190,8 +189,6 @@ def _whole_elf(path: Path) -> bool:
     return Path(path).stat().st_size >= shoff + size * count
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 class NativeFunction:

@@ -62,7 +62,7 @@ import numpy as np
 
 from paper_repro import paths
 from paper_repro.evidence.sets import EVIDENCE_SETS, record_wall_time
-from paper_repro.paths import atomic_text, golden_dir
+from paper_repro.paths import atomic_text, atomic_write, golden_dir, sha256_of
 
 POSITION_TOLERANCE = 1e-9
 """m: the largest position difference between a flight and its committed golden copy that
@@ -527,20 +527,17 @@ def study_run_config(base_config: dict, changes: dict):
     return Config.from_dict(data)
 
 
-def sha256_of(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
 def set_hash(files: dict) -> str:
     text = json.dumps(files, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
 
 
 def _atomic_save(path: Path, array: np.ndarray) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as fh:
-        np.save(fh, np.ascontiguousarray(array, dtype="<f8"))
-    os.replace(tmp, path)
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as fh:
+            np.save(fh, np.ascontiguousarray(array, dtype="<f8"))
+
+    atomic_write(path, write)
 
 
 def _select(names) -> list[GoldenFlight]:

@@ -268,9 +268,9 @@ def commands(*names: str) -> str:
 
 
 def study_commands() -> str:
-    """Every study of :data:`~paper_repro.studies.catalogue.STUDY_NOTEBOOKS`: its runs (the rows
+    """Every study of :data:`~paper_repro.evidence.sets.STUDY_NOTEBOOKS`: its runs (the rows
     of its ``table.csv``), its notebook and the command that made it."""
-    from paper_repro.studies.catalogue import STUDY_NOTEBOOKS
+    from paper_repro.evidence.sets import STUDY_NOTEBOOKS
 
     rows = []
     for study, notebook in STUDY_NOTEBOOKS.items():

@@ -55,6 +55,13 @@ class EvidenceSet:
         return f"figures/{self.folder}" if self.folder else "figures"
 
 
+STUDY_NOTEBOOKS = {"monte_carlo": "09_monte_carlo", "eta_sweep": "10_eta_sweep",
+                   "sensor_noise": "13_sensor_noise", "sensing_window": "15_smooth_sensing",
+                   "moving_obstacles": "16_moving_obstacles", "timeline": "11_timeline",
+                   "guidance": "17_guidance"}
+"""The notebook that draws each study's figures from its saved table."""
+
+
 _STUDY = "--workers 1 --no-progress"
 
 SETS = (

@@ -3,7 +3,9 @@
 =================  ==================================================================
 ``loop``           :func:`simulate`, the step loop, and :class:`Faults` to inject
 ``result``         :class:`SimulationResult` (saves itself, becomes a DataFrame)
+``perception``     what the controller is given: scan, faults, predictor, local map
 ``plant``          what the loop flies (:class:`Plant`); the quadrotor's, RK45 in C
+``termination``    when a flight ends: targets, finish line, stall, faults
 ``checks``         checks of a mission before it flies, and the hazards it warns of
 =================  ==================================================================
 """

@@ -3,9 +3,7 @@ config and scene and becomes a DataFrame, and the metadata stored with every res
 
 from __future__ import annotations
 
-import hashlib
 import json
-import os
 import platform
 import subprocess
 import sys
@@ -17,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from paper_repro.config import Config
+from paper_repro.paths import atomic_text, sha256_of
 from paper_repro.world.scene import Scene
 
 RESULT_ARRAYS = ("t", "x", "u", "x_a", "u_a", "solve_time", "iterations", "success", "clearance",
@@ -200,10 +199,8 @@ _REQUIRED = (*RESULT_ARRAYS, "status", "targets", "reached")
 def write_manifest(directory) -> Path:
     """Write ``manifest.json`` (atomically) with the SHA-256 of the result's files."""
     d = Path(directory)
-    data = {"sha256": {name: _sha256(d / name) for name in _FILES}}
-    tmp = d / f".{MANIFEST}.{os.getpid()}.tmp"
-    tmp.write_text(json.dumps(data, indent=1) + "\n")
-    os.replace(tmp, d / MANIFEST)
+    data = {"sha256": {name: sha256_of(d / name) for name in _FILES}}
+    atomic_text(d / MANIFEST, json.dumps(data, indent=1) + "\n")
     return d / MANIFEST
 
 
@@ -230,7 +227,7 @@ def _check_manifest(d: Path) -> None:
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise DamagedResult(d, MANIFEST, f"is not a manifest ({exc})") from None
     for name in _FILES:
-        if recorded.get(name) != _sha256(d / name):
+        if recorded.get(name) != sha256_of(d / name):
             raise DamagedResult(d, name, "does not match its manifest (SHA-256 differs: "
                                          "changed or damaged since it was saved)")
 
@@ -262,12 +259,6 @@ def _read_arrays(d: Path, n_regions: int) -> dict:
     return arrays
 
 
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def run_metadata() -> dict:

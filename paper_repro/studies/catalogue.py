@@ -9,6 +9,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from paper_repro.config import PREDICTIONS, Config, GuideParams
+from paper_repro.evidence.sets import STUDY_NOTEBOOKS  # noqa: F401 (each study's notebook)
 from paper_repro.presets import (  # noqa: F401 (the moving study's design, a preset too)
     MOVING_APPROACH_TIME,
     MOVING_DESIGN,
@@ -369,12 +370,6 @@ def make_study(name: str, quick: bool = False, base: Config | None = None,
         raise ValueError(f"study must be one of {sorted(STUDIES)}, got {name!r}")
     return STUDIES[name](quick=quick, base=base, scenes=scenes)
 
-
-STUDY_NOTEBOOKS = {"monte_carlo": "09_monte_carlo", "eta_sweep": "10_eta_sweep",
-                   "sensor_noise": "13_sensor_noise", "sensing_window": "15_smooth_sensing",
-                   "moving_obstacles": "16_moving_obstacles", "timeline": "11_timeline",
-                   "guidance": "17_guidance"}
-"""The notebook that draws each study's figures from its saved table."""
 
 STUDY_NOTEBOOK_QUICK = {"sensing_window": {"mission": "encounter", "mission_steps": 3000},
                         "moving_obstacles": {"crossing_steps": 1500}, "timeline": {"quick": True},

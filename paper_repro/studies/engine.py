@@ -42,6 +42,7 @@ from pathlib import Path
 from paper_repro import paths
 from paper_repro.analysis import metrics
 from paper_repro.config import Config, GuideParams, SensorParams, SimulationParams
+from paper_repro.paths import atomic_write
 from paper_repro.progress import duration
 from paper_repro.studies.catalogue import Study
 from paper_repro.studies.cluster import dask_client
@@ -270,14 +271,14 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
 
     flight, timings = metrics.split_timings(table, TIMING_COLUMNS)
     timing = list(timings.columns)
-    _atomic(out / "table.parquet", lambda p: flight.to_parquet(p, index=False))
+    atomic_write(out / "table.parquet", lambda p: flight.to_parquet(p, index=False))
     if len(table) <= CSV_ROWS:
-        _atomic(out / "table.csv", lambda p: flight.to_csv(p, index=False))
+        atomic_write(out / "table.csv", lambda p: flight.to_csv(p, index=False))
     flew = "simulated" not in table or bool(table["simulated"].fillna(False).any())
     keep = (not flew and (out / "timings.csv").is_file() and (out / "timings.json").is_file()
             and _same_runs(out / "timings.csv", table))
     if not keep:
-        _atomic(out / "timings.csv", lambda p: table[["name", *timing]].to_csv(p, index=False))
+        atomic_write(out / "timings.csv", lambda p: table[["name", *timing]].to_csv(p, index=False))
     else:
         _current_locations(out / "timings.csv", table)
     # The base as a run's key sees it (config_history.ADDED settings at their neutral value left
@@ -292,11 +293,11 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
                        "config_changes": _changes(base, s.config)}
                       for s in study.specs]}
     text = json.dumps(meta, indent=1, default=str) + "\n"
-    _atomic(out / "study.json", lambda p: p.write_text(text))
+    atomic_write(out / "study.json", lambda p: p.write_text(text))
     if not keep:
         machine = json.dumps({"wall_time_s": wall, "meta": run_metadata()}, indent=1,
                              default=str) + "\n"
-        _atomic(out / "timings.json", lambda p: p.write_text(machine))
+        atomic_write(out / "timings.json", lambda p: p.write_text(machine))
 
 
 def _same_runs(timings: Path, table) -> bool:
@@ -317,14 +318,7 @@ def _current_locations(timings: Path, table) -> None:
     now = table["result_dir"].astype(str).to_numpy()
     if list(kept["result_dir"].astype(str)) != list(now):
         kept["result_dir"] = now
-        _atomic(timings, lambda p: kept.to_csv(p, index=False))
-
-
-def _atomic(path: Path, write) -> None:
-    """``write(tmp)`` then rename ``tmp`` to ``path``: a reader never sees half a file."""
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}{path.suffix}")
-    write(tmp)
-    os.replace(tmp, path)
+        atomic_write(timings, lambda p: kept.to_csv(p, index=False))
 
 
 def _changes(base: dict, config: Config) -> dict:

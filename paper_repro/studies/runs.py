@@ -33,6 +33,7 @@ import numpy as np
 
 from paper_repro import paths
 from paper_repro.config import Config
+from paper_repro.paths import atomic_text
 
 HASH_LENGTH = 12
 """Hex digits of the run key kept in a cache folder's name."""
@@ -151,9 +152,7 @@ def rekey(results_dir=None) -> dict:
             counts["duplicate"] += 1
             continue
         payload["config"] = today
-        tmp = d / ".config.json.rekey"
-        tmp.write_text(json.dumps(payload, indent=2, default=str) + "\n")
-        os.replace(tmp, d / "config.json")
+        atomic_text(d / "config.json", json.dumps(payload, indent=2, default=str) + "\n")
         write_manifest(d)
         if target != d:
             os.replace(d, target)

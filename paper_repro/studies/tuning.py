@@ -61,7 +61,7 @@ import numpy as np
 
 from paper_repro import paths
 from paper_repro.config import Config
-from paper_repro.paths import tuning_dir
+from paper_repro.paths import atomic_text, tuning_dir
 from paper_repro.studies.catalogue import (
     PASSAGE_STEPS,
     QUICK_STEPS,
@@ -436,11 +436,7 @@ def _fmt_params(params: Mapping[str, float]) -> str:
 
 
 def write_json(path: Path, data: dict) -> None:
-    import os
-
-    tmp = path.with_name(f".{path.name}.{os.getpid()}")
-    tmp.write_text(json.dumps(data, indent=1, default=str) + "\n")
-    os.replace(tmp, path)
+    atomic_text(path, json.dumps(data, indent=1, default=str) + "\n")
 
 
 def _scene_records(table) -> list[dict]:

@@ -11,6 +11,7 @@ the LiDAR sees of them, and what the robot makes of it: a map and a guide.
 ``scan_files``     :func:`read_scan`, points from .npy, .npz, .csv/.xyz/.txt, .ply, .pcd
 ``scan_regions``   :func:`scan_scene`, scan files placed, split into regions, thinned
 ``lidar``          :class:`Lidar`, the virtual LiDAR (optionally imperfect)
+``truth``          what no sensor sees: true region offsets, velocities, clearance
 ``tracking``       :class:`RegionTracker`, a Kalman filter of the regions' velocities
 ``local_map``      :class:`VoxelMap`, a bounded log-odds map of the scans (an option)
 ``guide``          :class:`Guide`, a path on the map handing the NMPC its set-points
