@@ -19,6 +19,7 @@ non-editable install.
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -85,6 +86,13 @@ def atomic_write(path: Path, write: Callable[[Path], object]) -> None:
 def atomic_text(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` atomically (:func:`atomic_write`)."""
     atomic_write(path, lambda tmp: tmp.write_text(text))
+
+
+def json_hash(payload: dict) -> str:
+    """The SHA-256 of ``payload`` as compact JSON with sorted keys (what is not JSON as its
+    ``str``), hex: the one hash of a set of settings or of files."""
+    text = json.dumps(payload, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def sha256_of(path: Path) -> str:

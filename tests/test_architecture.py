@@ -136,3 +136,39 @@ def test_no_module_is_longer_than_about_600_lines():
     lengths = {p.relative_to(ROOT).as_posix(): len(p.read_text().splitlines())
                for p in ROOT.rglob("*.py")}
     assert max(lengths.values()) <= 620, sorted(lengths.items(), key=lambda kv: -kv[1])[:3]
+
+
+def _private_imports(folders=("paper_repro", "tests", "benchmarks")) -> list[str]:
+    """``file: module.name`` for every private name (one underscore) imported from another
+    module of the package; a private module itself (``_native``) may be imported."""
+    top = ROOT.parent
+    found = []
+    for folder in folders:
+        for path in sorted((top / folder).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text())):
+                if not (isinstance(node, ast.ImportFrom) and node.module
+                        and node.module.split(".")[0] == "paper_repro"):
+                    continue
+                base = top.joinpath(*node.module.split("."))
+                for alias in node.names:
+                    name = alias.name
+                    is_module = (base / f"{name}.py").is_file() or (base / name).is_dir()
+                    if name.startswith("_") and not name.startswith("__") and not is_module:
+                        found.append(f"{path.relative_to(top)}: {node.module}.{name}")
+    return found
+
+
+def test_no_private_name_crosses_a_module():
+    """A name with a leading underscore is its module's own: no other module, test or
+    benchmark imports it (a test checks behaviour through public names)."""
+    assert _private_imports() == []
+
+
+def test_the_private_import_check_finds_one():
+    probe = ROOT.parent / "tests" / "_probe_private_import.py"
+    probe.write_text("from paper_repro.sim.loop import _vehicle\n")
+    try:
+        assert _private_imports(("tests",)) == [
+            "tests/_probe_private_import.py: paper_repro.sim.loop._vehicle"]
+    finally:
+        probe.unlink()

@@ -90,3 +90,28 @@ def _subparser(name):
     parser = argparse.ArgumentParser()
     COMMANDS[name].add_arguments(parser)
     return parser
+
+
+def test_run_tells_of_a_collision_and_of_the_design_for_moving_regions():
+    """A flight below the collision clearance is named as one; on moving regions flown with
+    the static prediction, the design for them is offered."""
+    import dataclasses as dc
+
+    import numpy as np
+
+    from paper_repro import Config
+    from paper_repro.analysis.metrics import COLLISION_CLEARANCE
+    from paper_repro.cli.run import collision_notes
+    from paper_repro.world.scenarios import make_scene
+
+    class Flight:
+        def __init__(self, clearance, scene, config=Config()):
+            self.clearance, self.scene, self.config = np.asarray(clearance), scene, config
+
+    crossing, encounter = make_scene("crossing"), make_scene("encounter")
+    assert collision_notes(Flight([2.0, COLLISION_CLEARANCE], crossing)) == []
+    notes = collision_notes(Flight([2.0, 0.25, 1.0], crossing))
+    assert "0.250 m" in notes[0] and "--preset moving-design" in notes[1]
+    assert len(collision_notes(Flight([0.25], encounter))) == 1  # static regions: no design
+    oracle = dc.replace(Config(), nmpc=dc.replace(Config().nmpc, prediction="oracle"))
+    assert len(collision_notes(Flight([0.25], crossing, oracle))) == 1

@@ -16,7 +16,7 @@ from paper_repro.config import Config, GuideParams, SensorParams
 from paper_repro.config_history import ADDED
 from paper_repro.sim.loop import simulate
 from paper_repro.studies.catalogue import passage_config, with_guide, with_map
-from paper_repro.world.guide import _NEIGHBOURS, Guide, _shortest_path, _turn
+from paper_repro.world.guide import NEIGHBOURS, Guide, shortest_path, turn_towards
 from paper_repro.world.local_map import VoxelMap
 from paper_repro.world.shapes import Box, halton_cloud
 
@@ -83,7 +83,7 @@ def test_turn_is_a_bounded_rotation_that_reaches_its_goal():
     rng = np.random.default_rng(1)
     for k in range(200):
         current, want = (v / np.linalg.norm(v) for v in rng.normal(size=(2, 2 + k % 2)))
-        turned = _turn(current, want, math.radians(5.0))
+        turned = turn_towards(current, want, math.radians(5.0))
         assert np.linalg.norm(turned) == pytest.approx(1.0)
         step = math.acos(np.clip(np.dot(turned, current), -1, 1))
         before = math.acos(np.clip(np.dot(current, want), -1, 1))
@@ -91,7 +91,7 @@ def test_turn_is_a_bounded_rotation_that_reaches_its_goal():
         assert step <= math.radians(5.0) + 1e-9
         assert after == pytest.approx(max(before - math.radians(5.0), 0.0), abs=1e-7)
     # straight opposite: it still turns, by exactly the limit
-    turned = _turn(np.array([1.0, 0, 0]), np.array([-1.0, 0, 0]), 0.1)
+    turned = turn_towards(np.array([1.0, 0, 0]), np.array([-1.0, 0, 0]), 0.1)
     assert math.acos(turned[0]) == pytest.approx(0.1)
 
 
@@ -152,7 +152,9 @@ def test_the_guide_off_keeps_every_key_and_on_enters_it():
     assert ("guide", None) in ADDED
     cfg = Config()
     before = cfg.to_dict()
-    del before["guide"]
+    for part, name in ADDED:  # the parts added whole (the guide, the tracker), then settings
+        if name is None:
+            del before[part]
     for part, name in ADDED:
         if name is not None and part in before:
             del before[part][name]
@@ -202,7 +204,7 @@ def _dijkstra_from_goal(guide: Guide, goal: int) -> np.ndarray:
     whole lattice built from scratch (the reference the guide's A* must match)."""
     index = np.arange(guide.blocked.size).reshape(guide.shape)
     rows, cols, weights = [], [], []
-    for d, step in zip(_NEIGHBOURS, guide._steps):
+    for d, step in zip(NEIGHBOURS, guide._steps):
         src = tuple(slice(max(0, -o), n - max(0, o)) for o, n in zip(d, guide.shape))
         dst = tuple(slice(max(0, o), n + min(0, o)) for o, n in zip(d, guide.shape))
         u, v = index[src].ravel(), index[dst].ravel()
@@ -221,7 +223,7 @@ def test_the_path_search_is_as_short_as_dijkstra_over_the_whole_grid():
     and no path where Dijkstra finds none (a goal walled in)."""
     guide = Guide(np.array([-2.5, -2.5, 0.0]), np.array([12.5, 10.5, 8.0]))
     rng = np.random.default_rng(1)
-    step_of = {tuple(d): s for d, s in zip(_NEIGHBOURS, guide._steps)}
+    step_of = {tuple(d): s for d, s in zip(NEIGHBOURS, guide._steps)}
     for share in (0.0, 0.05, 0.2, 0.35):
         guide.blocked[:] = rng.random(guide.blocked.size) < share
         free = np.flatnonzero(~guide.blocked)
@@ -229,7 +231,7 @@ def test_the_path_search_is_as_short_as_dijkstra_over_the_whole_grid():
         sources = rng.choice(free[free != goal], size=5, replace=False)
         gaps = rng.uniform(0.0, guide.cell, size=5)
         dist = _dijkstra_from_goal(guide, goal)
-        found = _shortest_path(guide.shape, guide._steps, guide.blocked, sources, gaps, goal,
+        found = shortest_path(guide.shape, guide._steps, guide.blocked, sources, gaps, goal,
                                guide.cell, guide.climb)
         best = np.min(gaps + dist[sources])
         if not np.isfinite(best):
@@ -247,7 +249,7 @@ def test_the_path_search_is_as_short_as_dijkstra_over_the_whole_grid():
     goal = int(np.ravel_multi_index((5, 5, 5), guide.shape))
     walls = np.array(np.unravel_index(np.arange(guide.blocked.size), guide.shape)).T
     guide.blocked[np.abs(walls - 5).max(axis=1) == 1] = True  # a shell of cells round it
-    assert _shortest_path(guide.shape, guide._steps, guide.blocked, np.array([0]),
+    assert shortest_path(guide.shape, guide._steps, guide.blocked, np.array([0]),
                           np.array([0.0]), goal, guide.cell, guide.climb) is None
 
 

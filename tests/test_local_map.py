@@ -202,14 +202,15 @@ def test_the_map_reader_maps_static_regions_and_passes_moving_ones_through():
     import dataclasses
 
     from paper_repro import Config
-    from paper_repro.sim.loop import _map_reader
+    from paper_repro.sim.perception import Perception
     from paper_repro.world.scenarios import make_scene
 
     scene = make_scene("encounter")
     base = Config()
-    assert _map_reader(base, scene) == (None, None)  # the paper reads the raw scan
+    paper = Perception(base, scene)
+    assert paper.read_map is None and paper.local_map is None  # the paper reads the raw scan
     cfg = dataclasses.replace(base, sensor=dataclasses.replace(base.sensor, map_voxel=0.5))
-    read, local_map = _map_reader(cfg, scene)
+    read = Perception(cfg, scene).read_map
     n = len(scene.clouds)
     a = np.array([[1.0, 0.0, 0.0]])
     scan = [a] + [np.zeros((0, 3))] * (n - 1)
@@ -229,13 +230,13 @@ def test_the_map_needs_a_3d_scene():
     import dataclasses
 
     from paper_repro import Config
-    from paper_repro.sim.loop import _map_reader
+    from paper_repro.sim.perception import Perception
     from paper_repro.world.planar import planar_scene
 
     base = Config()
     cfg = dataclasses.replace(base, sensor=dataclasses.replace(base.sensor, map_voxel=0.5))
     with pytest.raises(ValueError, match="map_voxel"):
-        _map_reader(cfg, planar_scene())
+        Perception(cfg, planar_scene())
 
 
 def test_a_noisy_flight_reading_the_map_stays_clear_and_stops_chattering():

@@ -173,7 +173,9 @@ def test_the_equilibrium_lookahead_is_checked_needs_a_prediction_and_keeps_every
     cache key is the one it had before the setting existed (config_history.ADDED), any other value
     changes it, and a stored configuration reads back whole."""
     from paper_repro.config_history import ADDED
-    from paper_repro.studies.runs import _hash, run_key
+    from paper_repro.evidence.golden import golden_hash
+    from paper_repro.paths import json_hash
+    from paper_repro.studies.runs import run_key
 
     for bad in (-0.5, 11.0, float("nan")):
         with pytest.raises(ValueError, match=r"^equilibrium_lookahead must be a finite number in "
@@ -195,10 +197,9 @@ def test_the_equilibrium_lookahead_is_checked_needs_a_prediction_and_keeps_every
                 del before[part][name]
         assert cfg.key_dict() == before and Config.from_dict(before) == cfg
         assert run_key(cfg, 100, "scene") == run_key(Config.from_dict(before), 100, "scene")
-        from paper_repro.evidence.golden import golden_hash
-        assert run_key(cfg, 100, "scene") == _hash({"config": before, "max_steps": 100,
-                                                    "scene": "scene",
-                                                    "golden": golden_hash()})
+        assert run_key(cfg, 100, "scene") == json_hash({"config": before, "max_steps": 100,
+                                                        "scene": "scene",
+                                                        "golden": golden_hash()})
     assert on.key_dict()["barrier"]["equilibrium_lookahead"] == 2.0
     assert Config.from_dict(on.key_dict()) == on
     off = dataclasses.replace(on, barrier=BarrierParams())

@@ -111,12 +111,12 @@ def test_study_json_gives_every_run_its_whole_configuration_back(name):
     as the run's configuration, a setting added later with a default other than its neutral
     value (the guide's set-point filter) included."""
     from paper_repro.evidence.golden import study_run_config
-    from paper_repro.studies.engine import _changes
+    from paper_repro.studies.engine import config_changes
 
     study = make_study(name, quick=True)
     base = study.specs[0].config.key_dict()
     for spec in study.specs:
-        assert study_run_config(base, _changes(base, spec.config)) == spec.config, spec.name
+        assert study_run_config(base, config_changes(base, spec.config)) == spec.config, spec.name
 
 
 def test_bad_study_input_is_named():

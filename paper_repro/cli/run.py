@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
 from paper_repro.cli.args import (
     non_negative_int,
     output_directory,
@@ -112,7 +114,26 @@ def main(args) -> int:
     result = simulate(cfg, max_steps=args.max_steps, scene=scene,
                       progress=False if args.no_progress else None)
     print(f"{result.summary()} -> {result.save(out)}")
+    for line in collision_notes(result):
+        print(line)
     return 0
+
+
+def collision_notes(result) -> list[str]:
+    """What the user is told when the flight came closer to a cloud than the studies' collision
+    clearance, and, for moving regions flown with the paper's static prediction, what to fly
+    instead."""
+    from paper_repro.analysis.metrics import COLLISION_CLEARANCE
+
+    closest = float(np.nanmin(result.clearance)) if len(result.clearance) else np.inf
+    if not closest < COLLISION_CLEARANCE:
+        return []
+    notes = [f"collision: the vehicle came {closest:.3f} m from a cloud point, below the "
+             f"collision clearance of {COLLISION_CLEARANCE:g} m (the rotor radius)"]
+    if result.scene.is_moving and result.config.nmpc.prediction == "static":
+        notes.append("the regions move and the prediction is static (the paper's): "
+                     "--preset moving-design flies the design for moving regions")
+    return notes
 
 
 def run_config(args) -> Config:

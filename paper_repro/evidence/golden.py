@@ -52,7 +52,6 @@ golden flights.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import os
 from dataclasses import dataclass
@@ -62,7 +61,7 @@ import numpy as np
 
 from paper_repro import paths
 from paper_repro.evidence.sets import EVIDENCE_SETS, record_wall_time
-from paper_repro.paths import atomic_text, atomic_write, golden_dir, sha256_of
+from paper_repro.paths import atomic_text, atomic_write, golden_dir, json_hash, sha256_of
 
 POSITION_TOLERANCE = 1e-9
 """m: the largest position difference between a flight and its committed golden copy that
@@ -528,8 +527,8 @@ def study_run_config(base_config: dict, changes: dict):
 
 
 def set_hash(files: dict) -> str:
-    text = json.dumps(files, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode()).hexdigest()
+    """The hash of a set of golden files, ``{name: SHA-256}`` (:func:`paths.json_hash`)."""
+    return json_hash(files)
 
 
 def _atomic_save(path: Path, array: np.ndarray) -> None:

@@ -6,7 +6,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from paper_repro.analysis import metrics
-from paper_repro.plots.common import _LINESTYLES, MAX_POINTS, stride_indices
+from paper_repro.plots.common import LINESTYLES, MAX_POINTS, stride_indices
 
 # --- the mission's clock (paper_repro.analysis.clock, issue 12) -----------------------------------
 
@@ -63,7 +63,7 @@ def plot_flight_clocks(results, labels, paper_time: float = 500.0,
     for i, (r, label) in enumerate(zip(results, labels, strict=True)):
         dist = np.linalg.norm(metrics.tracking_error(r), axis=1)
         idx = stride_indices(len(dist), MAX_POINTS)
-        line, = ax.plot(r.t[idx], dist[idx], _LINESTYLES[i], lw=1.0, label=label)
+        line, = ax.plot(r.t[idx], dist[idx], LINESTYLES[i], lw=1.0, label=label)
         for a, b in avoidance_windows(r, merge_gap_s):
             bars.plot([a, b], [i, i], color=line.get_color(), lw=5, solid_capstyle="butt")
     for a in (ax, bars):

@@ -21,7 +21,7 @@ MAX_POINTS = 5000
 CLOUD_COLOR = "tab:red"
 SPHERE_COLOR = "tab:blue"
 AXIS_LABELS = ("x [m]", "y [m]", "z [m]")
-_LINESTYLES = ("-", "--", "-.", ":") * 4  # runs that coincide stay distinguishable
+LINESTYLES = ("-", "--", "-.", ":") * 4  # runs that coincide stay distinguishable
 
 
 # --- saving ---------------------------------------------------------------------------------

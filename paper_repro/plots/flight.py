@@ -11,9 +11,9 @@ from scipy.spatial import cKDTree
 
 from paper_repro.analysis import metrics
 from paper_repro.plots.common import (
-    _LINESTYLES,
     AXIS_LABELS,
     CLOUD_COLOR,
+    LINESTYLES,
     MAX_POINTS,
     axes3d_or_new,
     axes_column,
@@ -246,7 +246,7 @@ def plot_solve_times(results, ax=None, max_points: int = MAX_POINTS):
     least t (ms), both axes logarithmic, with the sampling period T_s marked (a call longer
     than T_s misses the real-time deadline)."""
     fig, ax = axes_or_new(ax, figsize=(6, 3.5))
-    for r, ls in zip(results, _LINESTYLES):
+    for r, ls in zip(results, LINESTYLES):
         ms = np.sort(np.asarray(r.solve_time) * 1e3)
         idx = stride_indices(len(ms), max_points)
         ax.step(ms[idx], (len(ms) - idx) / len(ms), where="post", ls=ls,
@@ -271,7 +271,7 @@ def plot_input_spectrum(results, cutoff_hz: float = metrics.DEFAULT_CUTOFF_HZ, a
     the rotors) with the cut-off marked: ``hf_energy_fraction`` is the share of the power to
     the right of the dashed line."""
     fig, ax = axes_or_new(ax, figsize=(6, 3.5))
-    for r, ls in zip(results, _LINESTYLES):
+    for r, ls in zip(results, LINESTYLES):
         freqs, psd = metrics.input_spectrum(r.u, r.config.nmpc.ts)
         if len(freqs) < 2:
             continue

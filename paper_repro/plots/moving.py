@@ -8,9 +8,9 @@ import numpy as np
 from paper_repro.analysis import metrics
 from paper_repro.plots.animation import save_animation
 from paper_repro.plots.common import (
-    _LINESTYLES,
     AXIS_LABELS,
     CLOUD_COLOR,
+    LINESTYLES,
     MAX_POINTS,
     SPHERE_COLOR,
     axes_or_new,
@@ -89,7 +89,7 @@ def plot_clearance_time(results, labels, ax=None, t_range=None,
         colour = PREDICTION_COLOURS.get(label, f"C{i}")
         idx = envelope_indices(c, max_points)
         j = int(np.argmin(c))
-        ax.plot(t[idx], c[idx], color=colour, lw=1.3, ls=_LINESTYLES[i],
+        ax.plot(t[idx], c[idx], color=colour, lw=1.3, ls=LINESTYLES[i],
                 label=f"{label}: min {c[j]:.3f} m at {t[j]:.2f} s")
         ax.plot(t[j], c[j], "o", color=colour, ms=5)
     ax.axhline(collision, color="k", ls=":", lw=1, label=f"collision < {collision:g} m")

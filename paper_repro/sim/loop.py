@@ -24,7 +24,12 @@ from paper_repro.progress import step_progress
 from paper_repro.sim.checks import SetupHazardWarning, check_setup, setup_hazards
 from paper_repro.sim.perception import Perception
 from paper_repro.sim.plant import plant_for
-from paper_repro.sim.result import RESULT_ARRAYS, SimulationResult, run_metadata
+from paper_repro.sim.result import (
+    FAULT_STATUSES,
+    RESULT_ARRAYS,
+    SimulationResult,
+    run_metadata,
+)
 from paper_repro.sim.termination import Termination
 from paper_repro.solvers.factory import make_controller
 from paper_repro.vehicles.base import VehicleModel
@@ -157,10 +162,8 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
                      model)
         if sol.success:
             plan, last_good = sol, measured
-        else:  # the previous plan shifted by one step (hover where it was, if none)
-            plan = plan.shifted() if plan is not None else ctl.hover_guess(last_good)
-            if sol.status == "solve_error" or sol.status == "state_fault":
-                sol = dataclasses.replace(sol, x_a=plan.x_a, u_a=plan.u_a)
+        else:
+            plan, sol = _fall_back(ctl, sol, plan, last_good)
         stop.count_fault(sol.status)
         u = plan.u[0]
         log.record(k, t, x, y, u, sol, stop.target_index,
@@ -181,14 +184,21 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     # The true clearance of every step at once, after the flight: it is only logged, and one
     # batched KD-tree query costs a fraction of one query per step.
     arrays["clearance"] = TrueClearance(scene).along(log.y[:log.n], arrays["t"])
-    meta["wall_time_s"] = time.perf_counter() - wall
-    meta["errors"] = errors
-    meta["scene"] = scene.name
-    meta.update(counters.since())
-    if guide is not None:
-        meta["guide"] = dict(guide.stats)
+    meta.update(wall_time_s=time.perf_counter() - wall, errors=errors, scene=scene.name,
+                **counters.since(), **({} if guide is None else {"guide": dict(guide.stats)}))
     return SimulationResult(targets=stop.targets, reached=stop.reached, outcome=stop.outcome,
                             scene=scene, config=cfg, meta=meta, **arrays)
+
+
+def _fall_back(ctl, sol: NMPCSolution, plan: NMPCSolution | None, last_good):
+    """After a failed solve: the previous plan shifted by one step (its first input is
+    applied), or hover where the vehicle last had a usable state when there is no plan yet;
+    and the failed solution, given that plan's artificial equilibrium when the solve never
+    started (a fault) so that the log has one."""
+    plan = plan.shifted() if plan is not None else ctl.hover_guess(last_good)
+    if sol.status in FAULT_STATUSES:
+        sol = dataclasses.replace(sol, x_a=plan.x_a, u_a=plan.u_a)
+    return plan, sol
 
 
 def _plant(plant, model: VehicleModel, cfg: Config):

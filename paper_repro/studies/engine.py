@@ -290,7 +290,7 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
             "base_config": base,
             "specs": [{"name": s.name, "key": s.key, "max_steps": s.max_steps,
                        "labels": dict(s.labels),
-                       "config_changes": _changes(base, s.config)}
+                       "config_changes": config_changes(base, s.config)}
                       for s in study.specs]}
     text = json.dumps(meta, indent=1, default=str) + "\n"
     atomic_write(out / "study.json", lambda p: p.write_text(text))
@@ -321,7 +321,7 @@ def _current_locations(timings: Path, table) -> None:
         atomic_write(timings, lambda p: kept.to_csv(p, index=False))
 
 
-def _changes(base: dict, config: Config) -> dict:
+def config_changes(base: dict, config: Config) -> dict:
     """``{"part.field": value}``: what ``config`` changes in ``base`` (a ``Config.key_dict()``),
     so that :func:`~paper_repro.evidence.golden.study_run_config` gives ``config`` back. First
     the settings that differ from the base's; then those that a part the changes bring in

@@ -21,7 +21,6 @@ looks complete. Both ``reproduce`` and ``study`` go through here.
 from __future__ import annotations
 
 import functools
-import hashlib
 import json
 import os
 import shutil
@@ -33,7 +32,7 @@ import numpy as np
 
 from paper_repro import paths
 from paper_repro.config import Config
-from paper_repro.paths import atomic_text
+from paper_repro.paths import atomic_text, json_hash
 
 HASH_LENGTH = 12
 """Hex digits of the run key kept in a cache folder's name."""
@@ -89,7 +88,7 @@ def run_key(config: Config, max_steps: int, scene_fingerprint: str) -> str:
     (:func:`~paper_repro.evidence.golden.layer_of`: the code's behaviour)."""
     from paper_repro.evidence.golden import golden_hash, layer_of
 
-    return _hash({"config": config.key_dict(), "max_steps": int(max_steps),
+    return json_hash({"config": config.key_dict(), "max_steps": int(max_steps),
                   "scene": scene_fingerprint, "golden": golden_hash(layer_of(config))})
 
 
@@ -136,7 +135,7 @@ def rekey(results_dir=None) -> dict:
             candidate["simulation"]["max_steps"] = spec_steps
             # keyed as saved (code before ADDED), or as Config.key_dict keys it (today's)
             for keyed in (candidate, _without_added(candidate)):
-                if _hash({"config": keyed, "max_steps": int(steps), "scene": scene,
+                if json_hash({"config": keyed, "max_steps": int(steps), "scene": scene,
                           "golden": golden})[:HASH_LENGTH] == key:
                     written = candidate
         if written is None:
@@ -167,10 +166,6 @@ def _without_added(config: dict) -> dict:
 
     return without_added(json.loads(json.dumps(config)), Config().to_dict())
 
-
-def _hash(payload: dict) -> str:
-    text = json.dumps(payload, sort_keys=True, separators=(",", ":"), default=str)
-    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def is_cached(directory) -> bool:

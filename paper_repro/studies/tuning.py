@@ -69,7 +69,7 @@ from paper_repro.studies.catalogue import (
 from paper_repro.studies.cluster import dask_client
 from paper_repro.studies.engine import run_study
 from paper_repro.studies.tuning_scenes import (
-    _check_disjoint,
+    check_disjoint,
     evaluate_table,
     training_scenes,
     trial_study,
@@ -209,7 +209,7 @@ def tune(settings: TuningSettings | None = None, *, workers: int | None = None,
                     spec["scenes"], spec["hard"], max_steps=max_steps, base=base,
                     client=cluster_client, runs_dir=runs_dir, require_completion=not quick,
                     log=log)
-            _check_disjoint(train)
+            check_disjoint(train)
         else:
             train = tuple(existing.user_attrs.get("seeds", ()))
             must = tuple(existing.user_attrs.get("must_complete", train))
@@ -351,7 +351,7 @@ def check_tune_args(trials, quick, workers, scheduler, storage, space, objective
         if not seeds or not all(isinstance(s, (int, np.integer)) and s >= 0 for s in seeds):
             raise ValueError(f"seeds must be a non-empty sequence of integers >= 0, got "
                              f"{seeds!r}")
-        _check_disjoint(seeds)
+        check_disjoint(seeds)
     steps = max_steps if max_steps is not None else (QUICK["max_steps"] if quick
                                                      else PASSAGE_STEPS)
     if not (isinstance(steps, int) and steps >= 1):

@@ -193,7 +193,7 @@ def _scene_kind(row, require_completion: bool) -> str | None:
     return "clean" if shortfall <= 0 else None
 
 
-def _check_disjoint(seeds) -> None:
+def check_disjoint(seeds) -> None:
     overlap = sorted(set(int(s) for s in seeds) & set(HELDOUT_SEEDS))
     if overlap:
         raise ValueError(f"seeds: training scenes must not be held-out scenes "

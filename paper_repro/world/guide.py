@@ -75,7 +75,7 @@ STUCK_DISTANCE = 0.05
 """m: a vehicle that moves less than this over ``stuck_time`` is stuck (a mean speed below
 2 cm/s for the default 2.5 s; the closed loop calls a run stalled after 5 s below 1 cm/s)."""
 
-_NEIGHBOURS = np.array([d for d in itertools.product((-1, 0, 1), repeat=3) if any(d)])
+NEIGHBOURS = np.array([d for d in itertools.product((-1, 0, 1), repeat=3) if any(d)])
 """The 26 offsets of a cell's neighbours, (26, 3)."""
 
 
@@ -129,7 +129,7 @@ class Guide:
         self._counts = np.array(self.shape)
         # What a step to each neighbour costs, m: its length, a metre up or down weighing climb.
         self._steps = np.array([self.cell * float(np.linalg.norm(d * (1.0, 1.0, self.climb)))
-                                for d in _NEIGHBOURS])
+                                for d in NEIGHBOURS])
         reach = int(math.ceil(self.inflation / self.cell)) + 1
         self._stencil = np.array(list(itertools.product(range(-reach, reach + 1), repeat=3)))
         # Blocked cells near the vehicle are not counted against a segment that starts there:
@@ -289,7 +289,7 @@ class Guide:
         origin = self._nearest_free(y, None) if goal_cell is not None else None
         if origin is not None:
             candidates, gaps = origin
-            found = _shortest_path(self.shape, self._steps, self.blocked, candidates, gaps,
+            found = shortest_path(self.shape, self._steps, self.blocked, candidates, gaps,
                                    goal_cell, self.cell, self.climb)
             if found is not None:
                 chain, along = found
@@ -373,7 +373,7 @@ class Guide:
                 0.0 if ahead is None else float(self.remaining[ahead]))
         if self.direction is not None and np.array_equal(self.direction, self.want):
             return
-        self.direction = _turn(self.direction, self.want, self.max_turn)
+        self.direction = turn_towards(self.direction, self.want, self.max_turn)
         if np.array_equal(self.direction, self.want) and (ahead is None or not self.want.any()):
             point = self.aim.copy()  # the goal in sight (or the aim straight above or below)
         else:
@@ -400,16 +400,16 @@ class Guide:
         return samples[free[0]] if len(free) else self.point.copy()
 
 
-def _shortest_path(shape, steps: np.ndarray, blocked: np.ndarray, sources: np.ndarray,
+def shortest_path(shape, steps: np.ndarray, blocked: np.ndarray, sources: np.ndarray,
                    gaps: np.ndarray, goal: int, cell: float, climb: float):
     """The shortest path on the grid of ``shape`` cells through the cells not ``blocked``
     ((n,) bool), from any of the flat cells ``sources`` (entered at the costs ``gaps``, m) to
     the flat cell ``goal``, a step to neighbour d costing ``steps[d]`` (m, the offsets of
-    :data:`_NEIGHBOURS`): A* in ``_grid_path.c``. Returns (chain, along): the path's flat
+    :data:`NEIGHBOURS`): A* in ``_grid_path.c``. Returns (chain, along): the path's flat
     cells, a start first and the goal last, and each one's length to the goal along it, m;
     ``None`` when the goal cannot be reached."""
     dims = np.array(shape, np.int64)
-    offsets = np.ascontiguousarray(_NEIGHBOURS, np.int64)
+    offsets = np.ascontiguousarray(NEIGHBOURS, np.int64)
     steps = np.ascontiguousarray(steps, float)
     cells = np.ascontiguousarray(blocked, np.uint8)
     sources = np.ascontiguousarray(sources, np.int64)
@@ -435,7 +435,7 @@ def _library() -> ctypes.CDLL:
     return lib
 
 
-def _turn(current, want: np.ndarray, max_turn: float) -> np.ndarray:
+def turn_towards(current, want: np.ndarray, max_turn: float) -> np.ndarray:
     """The unit vector ``current`` (2-D or 3-D) turned towards the unit vector ``want`` by at
     most ``max_turn`` rad, in their common plane (``want`` itself when there is no
     ``current``, when either is zero, or when it is close enough)."""
