@@ -4,11 +4,12 @@
 
 Installs what it needs when it is missing (Debian's ``chromium``, with apt-get; the
 ``playwright`` Python package, which drives it), serves the site on localhost, and loads the
-index, the reproduction page and one notebook page. On each page it asserts that every image
+index, the reproduction page and every notebook page. On each page it asserts that every image
 has loaded (``complete`` with a non-zero natural width), that the browser logged no console
 error, no failed request and no exception, that MathJax typeset the formulas of a page that
 has some, and that every internal link resolves (the file
-answers 200, and a ``#fragment`` names an element of it). It saves a full-page screenshot of
+answers 200, and a ``#fragment`` names an element of it). A notebook page must show at least
+one figure: an image in a cell's output that loaded. It saves a full-page screenshot of
 each page into ``build/book/screenshots/`` and prints one line per page, then what failed;
 the exit status is 1 when anything did.
 """
@@ -26,7 +27,8 @@ from pathlib import Path
 from urllib.parse import urldefrag, urljoin, urlparse
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGES = ("index.html", "reproduction.html", "notebooks/03_thrusts.html")
+PAGES = ("index.html", "reproduction.html")
+"""The pages checked besides every notebook page (``notebooks/*.html``)."""
 CHROMIUM = "/usr/bin/chromium"
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync"]
@@ -77,6 +79,10 @@ def check_page(page, context, base: str, path: str, shots: Path) -> list[str]:
     images = page.eval_on_selector_all(
         "img", "els => els.map(e => [e.getAttribute('src'), e.complete && e.naturalWidth > 0])")
     problems += [f"{path}: image {src} did not load" for src, ok in images if not ok]
+    figures = page.eval_on_selector_all(
+        ".cell_output img", "els => els.filter(e => e.complete && e.naturalWidth > 0).length")
+    if path.startswith("notebooks/") and not figures:
+        problems.append(f"{path}: the page shows no figure (no image in a cell's output)")
     problems += [f"{path}: console: {text}" for text in console]
     formulas, typeset = page.evaluate(
         "[document.querySelectorAll('span.math, div.math').length,"
@@ -99,8 +105,37 @@ def check_page(page, context, base: str, path: str, shots: Path) -> list[str]:
             problems.append(f"{path}: link {href} names no element #{fragment}")
     name = path.replace("/", "_").removesuffix(".html") + ".png"
     page.screenshot(path=str(shots / name), full_page=True)
-    print(f"{path}: {len(images)} images, {len(set(hrefs))} links, {formulas} formulas "
-          f"({typeset} typeset), {len(console)} console errors -> {shots / name}", flush=True)
+    print(f"{path}: {len(images)} images ({figures} figures in outputs), {len(set(hrefs))} "
+          f"links, {formulas} formulas ({typeset} typeset), {len(console)} console errors -> "
+          f"{shots / name}", flush=True)
+    return problems
+
+
+def check_site(site: Path, shots: Path, pages=None) -> list[str]:
+    """Load ``pages`` of the built ``site`` (default :data:`PAGES` and every notebook page) in
+    headless Chromium; returns what is wrong, one line per problem, and leaves a screenshot of
+    each page in ``shots`` (emptied first). Chromium and Playwright must be installed."""
+    from playwright.sync_api import sync_playwright
+
+    if pages is None:
+        pages = [*PAGES, *(f"notebooks/{p.name}"
+                           for p in sorted((site / "notebooks").glob("*.html")))]
+    if shots.exists():
+        shutil.rmtree(shots)
+    shots.mkdir(parents=True)
+    server, base = serve(site)
+    problems: list[str] = []
+    try:
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
+            context = browser.new_context(viewport={"width": 1280, "height": 900})
+            for path in pages:
+                page = context.new_page()
+                problems += check_page(page, context, base, path, shots)
+                page.close()
+            browser.close()
+    finally:
+        server.shutdown()
     return problems
 
 
@@ -113,27 +148,9 @@ def main() -> int:
         print(f"no site at {args.site}: build it first (python -m paper_repro book)")
         return 2
     install()
-    from playwright.sync_api import sync_playwright
-
-    shots = args.site.parent / "screenshots"
-    if shots.exists():
-        shutil.rmtree(shots)
-    shots.mkdir(parents=True)
-    server, base = serve(args.site)
-    problems: list[str] = []
-    try:
-        with sync_playwright() as pw:
-            browser = pw.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
-            context = browser.new_context(viewport={"width": 1280, "height": 900})
-            for path in PAGES:
-                page = context.new_page()
-                problems += check_page(page, context, base, path, shots)
-                page.close()
-            browser.close()
-    finally:
-        server.shutdown()
-    print("\n".join(problems) if problems else "every page: images loaded, no console error, "
-          "every internal link resolves")
+    problems = check_site(args.site, args.site.parent / "screenshots")
+    print("\n".join(problems) if problems else "every page: images loaded, a figure on every "
+          "notebook page, no console error, every internal link resolves")
     return 1 if problems else 0
 
 

@@ -1,8 +1,9 @@
 """Sphinx configuration of the book (``python -m paper_repro book``).
 
 The builder (:mod:`paper_repro.book.site`) stages these pages, the executed notebooks and
-the figures into one source folder and builds it with warnings as errors. Notebooks are
-never executed here: they show the outputs ``reproduce`` and the study commands gave them.
+the figures into one source folder and builds it with warnings as errors. Sphinx executes no
+notebook: each shows the outputs its command gave it, or, for a study notebook not executed
+here, those of the builder's drawing from the committed tables.
 
 A page links its images from its own folder in the repository (``../figures/x.png`` from
 ``docs/``), so that they show on a repository browser. The staged folder holds the figures

@@ -13,6 +13,7 @@ non-editable install.
 ``study_dir(name)``    a study's table and figures, ``figures/studies/<name>``
 ``tuning_dir()``       the tuning study and its figures, ``figures/tuning``
 ``golden_dir()``       the golden flights, ``figures/golden``
+``in_repo(path)``      a path as messages show it: relative to the root when inside it
 =====================  ===========================================================
 """
 
@@ -70,6 +71,16 @@ def tuning_dir(quick: bool = False) -> Path:
 def golden_dir() -> Path:
     """``figures/golden/``: the committed golden flights and ``golden.json``."""
     return figures_dir() / "golden"
+
+
+def in_repo(path) -> str:
+    """``path`` relative to the repository root when it lies inside it, else absolute: how
+    messages name a file."""
+    p = Path(path).resolve()
+    try:
+        return str(p.relative_to(repo_root()))
+    except ValueError:
+        return str(p)
 
 
 def atomic_write(path: Path, write: Callable[[Path], object]) -> None:

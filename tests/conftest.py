@@ -24,3 +24,20 @@ def l_cloud() -> np.ndarray:
                     if x <= 0.4 or y <= 0.4])
     pts = pts + gen.normal(scale=0.05, size=pts.shape)
     return pts + np.array([1.0, -2.0, 3.0])
+
+
+@pytest.fixture(scope="session")
+def site_check():
+    """``docs/check_site.py`` as a module, when the browser it drives is installed (it installs
+    Chromium and Playwright itself: ``python docs/check_site.py``); else the test is skipped."""
+    import importlib.util
+    from pathlib import Path
+
+    pytest.importorskip("playwright", reason="no Playwright: python docs/check_site.py installs it")
+    path = Path(__file__).resolve().parents[1] / "docs" / "check_site.py"
+    spec = importlib.util.spec_from_file_location("check_site", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    if not Path(module.CHROMIUM).exists():
+        pytest.skip(f"no Chromium at {module.CHROMIUM}: python docs/check_site.py installs it")
+    return module

@@ -68,3 +68,41 @@ def test_mathjax_is_staged_with_the_pages(tmp_path):
     page = src / "theory" / "distance.md"
     assert (page.parent / "../../figures/tutorial_eta_sigma.png").resolve().is_file()
     assert not list((src / "figures").rglob("*.pdf"))
+
+
+def test_the_browser_check_fails_a_notebook_page_without_a_figure(site_check, tmp_path):
+    """A page that shows code and numbers but no figure fails, as does an image that does not
+    load; a page whose output holds a loaded image passes."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    site = tmp_path / "html"
+    (site / "notebooks").mkdir(parents=True)
+    fig, ax = plt.subplots(figsize=(2, 1))
+    ax.plot([0, 1], [1, 0])
+    fig.savefig(site / "notebooks" / "figure.png")
+    plt.close(fig)
+    page = ('<!doctype html><html><head><title>t</title><link rel="icon" href="data:,">'
+            "</head><body>{}</body></html>")  # no icon to fetch: nothing answers 404 but ours
+    for name in ("index", "reproduction"):
+        (site / f"{name}.html").write_text(page.format("<p>a page</p>"))
+    outputs = {"shown": '<div class="cell_output"><img src="figure.png" alt="f"></div>',
+               "numbers": '<div class="cell_output"><pre>0.42</pre></div>',
+               "broken": '<div class="cell_output"><img src="absent.png" alt="f"></div>'}
+    for name, body in outputs.items():
+        (site / "notebooks" / f"{name}.html").write_text(page.format(body))
+
+    problems = site_check.check_site(site, tmp_path / "shots")
+
+    def about(name):
+        return [p for p in problems if p.startswith(f"notebooks/{name}.html")]
+
+    assert about("shown") == []
+    assert about("numbers") == ["notebooks/numbers.html: the page shows no figure (no image in "
+                                "a cell's output)"]
+    assert "notebooks/broken.html: image absent.png did not load" in about("broken")
+    assert any("shows no figure" in p for p in about("broken"))
+    assert not [p for p in problems if p.startswith(("index", "reproduction"))]
+    assert len(list((tmp_path / "shots").glob("*.png"))) == 5  # every page, one screenshot

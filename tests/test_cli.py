@@ -105,8 +105,9 @@ def test_run_tells_of_a_collision_and_of_the_design_for_moving_regions():
     from paper_repro.world.scenarios import make_scene
 
     class Flight:
-        def __init__(self, clearance, scene, config=Config()):
-            self.clearance, self.scene, self.config = np.asarray(clearance), scene, config
+        def __init__(self, clearance, scene, config=None):
+            self.clearance, self.scene = np.asarray(clearance), scene
+            self.config = config or Config()
 
     crossing, encounter = make_scene("crossing"), make_scene("encounter")
     assert collision_notes(Flight([2.0, COLLISION_CLEARANCE], crossing)) == []

@@ -48,6 +48,18 @@ def tiny_results(tmp_path_factory):
 
 
 STUDY_NOTEBOOKS = {nb: name for name, nb in NOTEBOOK_OF_STUDY.items()}
+
+
+def shown_images(notebook) -> int:
+    """Image outputs (PNG or GIF) of an executed notebook: the figures its page shows."""
+    nb = nbformat.read(notebook, as_version=4)
+    return sum(any(k.startswith("image/") for k in o.get("data", {}))
+               for c in nb.cells if c.cell_type == "code" for o in c.outputs)
+
+
+def pictures(files) -> int:
+    """How many of ``files`` are pictures a page can show (PNG, GIF)."""
+    return sum(str(f).endswith((".png", ".gif")) for f in files)
 STUDY_OUTPUTS = {
     "09_monte_carlo": ("mc_summary.csv", "mc_outcome_rates.png", "mc_paired_chattering.png",
                        "mc_clearance_ecdf.png", "mc_solve_times.png"),
@@ -137,6 +149,8 @@ def test_notebook_executes_with_quick_parameters(name, tiny_results, executed_co
     assert executed.metadata["papermill"]["parameters"] == json.loads(json.dumps(params))
     for f in spec.outputs:
         assert (figures / f).is_file() and (figures / f).stat().st_size > 0, f
+    # every picture it writes is on its page, whatever matplotlib's backend (CI: Agg)
+    assert shown_images(out) >= pictures(spec.outputs) >= 1
     if name == "06_summary":
         table = pd.read_csv(figures / "summary.csv", index_col="run")
         timings = pd.read_csv(figures / "summary_timings.csv", index_col="run")
@@ -178,6 +192,7 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, executed
     assert not any(o.get("output_type") == "error" for c in code for o in c.outputs)
     for f in STUDY_OUTPUTS[name]:
         assert (figures / f).is_file() and (figures / f).stat().st_size > 0, f
+    assert shown_images(out) >= pictures(STUDY_OUTPUTS[name]) >= 1
     if name == "09_monte_carlo":
         rates = pd.read_csv(figures / "mc_summary.csv").query("kind == 'rate'")
         assert set(rates["metric"]) == {"smooth", "euclidean"} and (rates["n"] == 3).all()
@@ -267,6 +282,7 @@ def test_tuning_notebook_draws_from_the_saved_study(quick_tuning, executed_copie
     assert not any(o.get("output_type") == "error" for c in code for o in c.outputs)
     for f in TUNING_OUTPUTS:
         assert (figures / f).is_file() and (figures / f).stat().st_size > 0, f
+    assert shown_images(out) >= pictures(TUNING_OUTPUTS) >= 1
     summary = pd.read_csv(figures / "tuning_heldout_summary.csv")
     rates = summary[summary["kind"] == "rate"]
     assert set(rates["setup"]) == {"printed", "best_chattering", "safest"}
@@ -289,19 +305,68 @@ def test_notebook_without_parameters_cell_is_rejected(tmp_path):
         R.check_parameters(path, {"a": 2})
 
 
-def test_the_book_builds_from_the_quick_run(executed_copies, tmp_path):
-    """The book, built (warnings are errors) from the notebooks the tests above executed: a
-    page per notebook with its outputs, every page of docs/, the API reference. Run alone,
-    it fails naming the notebooks that were not executed and the command for each."""
-    from paper_repro.book.site import build, notebook_names
+def test_study_notebooks_draw_the_committed_figures_from_the_committed_tables(tmp_path):
+    """What ``book`` does on a machine where no study was flown: each study notebook executed
+    on its committed folder, flying nothing and writing nothing under figures/, draws every
+    committed figure and table it makes again byte for byte, and shows its figures."""
+    from paper_repro import paths
+    from paper_repro.book.site import committed_folder, draw_from_tables
 
-    index = build(quick=True, executed=executed_copies, out=tmp_path / "book", log=lambda _: None,
-                  strict=True)
-    html = index.parent
+    names = sorted([*STUDY_NOTEBOOKS, TUNING])
+    figures, results = paths.figures_dir(), paths.results_dir()
+
+    def snapshot(folder):
+        return {p: p.stat().st_mtime_ns for p in folder.rglob("*")} if folder.exists() else {}
+
+    before = snapshot(figures), snapshot(results)
+    drawn = draw_from_tables(names, tmp_path / "drawn", log=lambda _: None)
+    assert (snapshot(figures), snapshot(results)) == before  # nothing flown, nothing written
+    for name in names:
+        d = drawn[name]
+        assert not d.reused and d.differing == (), (name, d.differing)
+        committed = {p.name for p in committed_folder(name).iterdir()}
+        made = [p.name for p in d.figures.iterdir()]
+        assert pictures(set(made) & committed) >= 1, name  # it drew committed figures again
+        code = [c for c in nbformat.read(d.notebook, as_version=4).cells if c.cell_type == "code"]
+        assert not any(o.get("output_type") == "error" for c in code for o in c.outputs)
+        shown = pictures(committed - {"evidence.json"})  # its own and the flights' figures
+        assert shown_images(d.notebook) >= shown, name
+    again = draw_from_tables(names[:1], tmp_path / "drawn", log=lambda _: None)
+    assert again[names[0]].reused  # same notebook, tables and code: the copy is kept
+
+
+@pytest.fixture(scope="module")
+def quick_book(executed_copies, tmp_path_factory):
+    """The book, built (warnings are errors) from the notebooks the tests above executed."""
+    from paper_repro.book.site import build
+
+    return build(quick=True, executed=executed_copies, out=tmp_path_factory.mktemp("book"),
+                 log=lambda _: None, strict=True)
+
+
+def test_the_book_builds_from_the_quick_run(quick_book):
+    """A page per notebook with its outputs and figures, every page of docs/, the API
+    reference. Run alone, it fails naming the notebooks that were not executed and the command
+    for each."""
+    from paper_repro.book.site import notebook_names
+
+    html = quick_book.parent
     for name in notebook_names():
         page = (html / "notebooks" / f"{name}.html").read_text()
         assert "cell_output" in page, f"{name}: the page shows no output"
+        assert "<img" in page, f"{name}: the page shows no figure"
     for page in ("reproduction", "method", "solvers", "usage", "own_model", "failures",
                  "contributing", "api", "studies/index", "studies/monte_carlo"):
         assert (html / f"{page}.html").is_file(), page
     assert list((html / "generated").glob("paper_repro.solvers.rti.html"))
+
+
+def test_every_notebook_page_shows_a_figure_in_a_browser(quick_book, site_check, tmp_path):
+    """docs/check_site.py on the quick book: every image loads, every notebook page shows a
+    figure, no console error, every internal link resolves."""
+    from paper_repro.book.site import notebook_names
+
+    html = quick_book.parent
+    assert site_check.check_site(html, tmp_path / "shots") == []
+    shots = {p.stem for p in (tmp_path / "shots").glob("*.png")}
+    assert {f"notebooks_{name}" for name in notebook_names()} <= shots

@@ -1,7 +1,7 @@
 """Figures, drawn from saved results and tables (nothing here simulates).
 
 =================  ==================================================================
-``common``         colours, axes helpers, decimation, :func:`save_figure`
+``common``         colours, axes helpers, decimation, :func:`save_figure`, :func:`show_figure`
 ``flight``         the paper's figures of one flight, and summary figures
 ``distance``       the smoothed distance on a 2-D slice (the tutorial)
 ``barrier``        the CBF penalty F(g) and the decay g ≤ 0 allows (the tutorial)
@@ -34,6 +34,7 @@ from paper_repro.plots.common import (
     draw_sphere,
     envelope_indices,
     save_figure,
+    show_figure,
     stride_indices,
 )
 from paper_repro.plots.distance import (
@@ -145,6 +146,7 @@ __all__ = [
     "prediction_velocities",
     "save_animation",
     "save_figure",
+    "show_figure",
     "scan_change_times",
     "setup_label",
     "slice_grid",

@@ -1,11 +1,12 @@
-"""What every figure shares: colours, decimation of long runs, axes helpers, and
-:func:`save_figure`.
+"""What every figure shares: colours, decimation of long runs, axes helpers,
+:func:`save_figure` and :func:`show_figure`.
 
 Each function takes a :class:`~paper_repro.sim.result.SimulationResult` (and the
 :class:`~paper_repro.world.scene.Scene` it flew in, ``result.scene``) and returns the matplotlib
 Figure; pass ``ax``/``axes`` to draw into an existing one. Long runs are decimated for drawing
 (at most ``max_points`` per line) with a min/max envelope, so chattering keeps its visible
-amplitude. :func:`save_figure` writes PDF (without a creation date, so byte-stable) and PNG.
+amplitude. :func:`save_figure` writes PDF (without a creation date, so byte-stable) and PNG;
+:func:`show_figure` displays a saved PNG in a notebook.
 """
 
 from __future__ import annotations
@@ -27,12 +28,16 @@ LINESTYLES = ("-", "--", "-.", ":") * 4  # runs that coincide stay distinguishab
 # --- saving ---------------------------------------------------------------------------------
 
 def save_figure(fig, stem: str, directory, formats=("pdf", "png"), dpi: int = 150,
-                close: bool = False) -> list[Path]:
+                close: bool = False, show: bool = False) -> list[Path]:
     """Write ``directory/stem.pdf`` and ``directory/stem.png``; returns the paths.
 
     The PDF carries no creation date (``CreationDate: None``), so saving the same figure twice
     gives the same bytes and regenerated figures only show up in git when they change.
+    ``show``: display the saved PNG in the notebook that runs this (:func:`show_figure`) and
+    close the figure, so the page shows the file itself, whatever matplotlib's backend.
     """
+    if show and "png" not in formats:
+        raise ValueError(f"show displays the PNG: formats must include 'png', got {formats!r}")
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -45,9 +50,33 @@ def save_figure(fig, stem: str, directory, formats=("pdf", "png"), dpi: int = 15
         else:
             raise ValueError(f"format must be 'pdf' or 'png', got {fmt!r}")
         paths.append(path)
-    if close:
+    if show:
+        show_figure(stem, out)
+    if close or show:
         plt.close(fig)
     return paths
+
+
+def show_figure(stem: str, directory, fmt: str = "png") -> Path:
+    """Display ``directory/stem.<fmt>`` (``"png"`` or ``"gif"``) in the notebook that runs
+    this, as an image output; returns its path. Outside IPython nothing is displayed.
+
+    A notebook shows a saved figure this way, e.g. one a study command drew from flights the
+    notebook does not fly again.
+    """
+    if fmt not in ("png", "gif"):
+        raise ValueError(f"fmt must be 'png' or 'gif', got {fmt!r}")
+    path = Path(directory) / f"{stem}.{fmt}"
+    if not path.is_file():
+        raise ValueError(f"no figure {path}: the command that draws {stem!r} writes it")
+    try:
+        from IPython import get_ipython
+        from IPython.display import Image, display
+    except ImportError:  # no IPython: nothing to display into
+        return path
+    if get_ipython() is not None:
+        display(Image(filename=str(path)))
+    return path
 
 
 def stride_indices(n: int, max_points: int = MAX_POINTS) -> np.ndarray:

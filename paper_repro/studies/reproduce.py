@@ -287,7 +287,7 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
     todo = [s for s in specs if s.config.distance.metric in needed]
     total = len(todo) + len(selected)
     log(f"reproduce: paper mission, {len(todo)} run(s) of at most {specs[0].max_steps} steps, "
-        f"{len(selected)} notebook(s) -> {_show(figures)}")
+        f"{len(selected)} notebook(s) -> {paths.in_repo(figures)}")
 
     result_dirs, simulated, timings = {}, [], {}
     flights = []
@@ -296,7 +296,7 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
         step = f"[{i}/{total}] simulate {spec.name}"
         result_dirs[spec.config.distance.metric] = out
         if not force and usable_or_set_aside(out, log):
-            log(f"{step}: cached in {_show(out)}")
+            log(f"{step}: cached in {paths.in_repo(out)}")
         else:
             log(f"{step}: flying up to {spec.max_steps} steps ...")
             flights.append((step, spec))
@@ -310,7 +310,7 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
             out, seconds = future.result()
             timings[spec.name] = seconds
             simulated.append(spec.name)
-            log(f"{step}: done in {duration(seconds)} -> {_show(out)}")
+            log(f"{step}: done in {duration(seconds)} -> {paths.in_repo(out)}")
 
     def run_notebook(i: int, nb: NotebookSpec) -> float:
         params = notebook_parameters(nb, result_dirs, figures, quick=quick)
@@ -360,8 +360,8 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
         # Last, once every figure is in place: this set is what this code makes.
         stamp(figures, "python -m paper_repro reproduce" + (
             f" --preset {preset}" if preset not in (None, "paper") else ""))
-    log(f"done in {duration(elapsed)}: {len(outputs)} file(s) in {_show(figures)}, executed "
-        f"notebooks in {_show(executed)}")
+    log(f"done in {duration(elapsed)}: {len(outputs)} file(s) in {paths.in_repo(figures)}, "
+        f"executed notebooks in {paths.in_repo(executed)}")
     return ReproduceReport(result_dirs, simulated, ran, figures, outputs, timings, elapsed)
 
 
@@ -425,12 +425,3 @@ def _select_notebooks(names) -> list[NotebookSpec]:
 def _has_parameters_cell(notebook: Path) -> bool:
     data = json.loads(Path(notebook).read_text())
     return any("parameters" in c.get("metadata", {}).get("tags", []) for c in data["cells"])
-
-
-def _show(path) -> str:
-    """A path relative to the repository when it lies inside it."""
-    p = Path(path).resolve()
-    try:
-        return str(p.relative_to(paths.repo_root()))
-    except ValueError:
-        return str(p)
