@@ -34,9 +34,10 @@ class SimulationParams:
         local and can deadlock in front of a cloud: the run is *stalled*, and ends, when the
         speed stays below ``stall_speed`` for more than ``stall_time`` while the UAV is more
         than ``stall_distance`` from its target. Under the printed weights the speed of a
-        free approach is about (distance to target)/150 s, i.e. 1 cm/s at 1.5 m, so a
+        free approach is about (distance to target)/155 s, i.e. 1 cm/s at 1.5 m, so a
         threshold of 1 m would flag every normal final approach; 2 m leaves a third above it.
-    approach_time : s, *chosen* 150 (the printed set-up's lateral time constant). The pace a
+    approach_time : s, *chosen* 150 (near the printed set-up's lateral time constant, 155 s,
+        :func:`paper_repro.analysis.clock.clock`). The pace a
         ``"random-crossing"`` scene times its crossings to (``RandomSceneParams``): a faster
         controller needs them sooner, or it passes first. Other scenes refuse another value.
     fault_steps : *chosen* 100 (1 s). A step whose measured state is not finite, or whose

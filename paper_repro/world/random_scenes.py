@@ -12,7 +12,7 @@ The scene serves two kinds of run: a *mission* (reach the target, as the paper) 
 cloud point of the field along the line. The start lies ``lead_in`` (4 m) before the field
 and the target ``run_out`` (40 m) beyond it, so that the UAV crosses the field at about the
 speed of the paper's mission (under the printed weights the speed is about the distance to
-the target over 150 s, ≈0.3 m/s here). A passage is then ``lead_in`` + field + 2 m, 8-17 m
+the target over 155 s, ≈0.3 m/s here). A passage is then ``lead_in`` + field + 2 m, 8-17 m
 (median 14 m) along the line, i.e. 30-60 s or 3,000-6,000 steps of 10 ms before detours.
 
 Geometry. The flight line is horizontal, at altitude h, with a heading drawn at random among
@@ -104,7 +104,7 @@ class RandomSceneParams:
     speed : (low, high), m/s, speed of a region of a moving scene (``moving=True``) across the
         line, drawn uniformly. Default (0.5, 1.5).
     approach_time : s, the UAV's expected speed is (distance to target)/``approach_time``
-        (150 s under the printed weights): flying straight from rest it is s(t) = L·(1 −
+        (150 s, near the printed weights' 155 s): flying straight from rest it is s(t) = L·(1 −
         e^{−t/approach_time}) along a line of length L, which times the crossings of a
         moving scene. Default 150 s.
     crossing_spread : s, in a moving scene region i's centre crosses the line at

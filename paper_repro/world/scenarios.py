@@ -74,7 +74,7 @@ def encounter_scene(seed: int = 7) -> Scene:
 
     The UAV starts at [−20, 0, 2], about 3 m before the corner, with its target 40 m away so
     that it cruises at the speed of the paper's mission (≈0.27 m/s: under the printed weights
-    the speed is about the distance to the target over 150 s). The straight line to the target
+    the speed is about the distance to the target over 155 s). The straight line to the target
     passes 0.9 m from the corner, inside the safety margin, so the barrier must bend the path
     around the near arm and then along the second arm; the near arm is passed in about 1,500
     steps and the whole region in about 2,500.
@@ -101,7 +101,7 @@ def crossing_scene(seed: int = 7) -> Scene:
     """A 2 × 2 × 3 m box that crosses the UAV's straight path at 1.0 m/s, for moving obstacles.
 
     The UAV starts at rest at [−20, 0, 2] with its target 40 m ahead, [20, 0, 2], as in the
-    encounter: it cruises at ≈0.25 m/s (about the distance to the target over 150 s; flying
+    encounter: it cruises at ≈0.25 m/s (about the distance to the target over 155 s; flying
     straight it is at x ≈ −18.0 m at t = 8 s, after dipping to z ≈ 1.3 m). The box (its
     points at t = 0 are the stored cloud) is centred at [−18, −8, 2] at t = 0 and moves along
     +y at ``CROSSING_SPEED``, so that its centre is on the path at x = −18 at t =
