@@ -122,6 +122,7 @@ def child(steps: int, out: Path) -> None:
     from paper_repro.solvers.factory import make_controller
 
     ctl = make_controller(Config())
+    ctl.ready()
     _warm_up(ctl)
     r = _measured_flight(ctl, steps)
     out.write_text(json.dumps({"steps": r.steps, "wall_s": r.meta["wall_time_s"]}))
@@ -175,6 +176,7 @@ def floors(repeats: int = 2000) -> pd.DataFrame:
 
     cfg = Config()
     ctl = make_controller(cfg)
+    ctl.ready()
     scene = make_scene(cfg.simulation.scenario, cfg.simulation.seed)
     lidar = Lidar(scene.clouds, cfg.sensor.range)
     captured = {}

@@ -282,6 +282,7 @@ def _config(scenario: str) -> Config:
 def _warm_controller(cfg: Config):
     """A built controller that has flown a few steps, then reset to a clean slate."""
     ctl = make_controller(cfg)
+    ctl.ready()
     simulate(cfg, controller=ctl, max_steps=WARMUP_STEPS, progress=False)
     ctl.reset()
     return ctl

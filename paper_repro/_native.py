@@ -9,6 +9,12 @@ Two kinds of C are built here:
 Shared libraries are keyed by a hash of their source and the compiler flags, and cached in
 ``$PAPER_REPRO_CACHE`` or ``~/.cache/paper_repro``, so each is compiled once per machine.
 
+**Built in the background** (:func:`build_in_background`). A controller needs several
+libraries, and gcc spends seconds to a minute on each. They are compiled at once, one gcc per
+core, while the caller goes on; a function waits for its own library only when it is first
+called. So a controller flies its first steps after the smallest library is built, not after
+all of them.
+
 **One instruction set for every machine** (:func:`arch_flags`). The flights are chaotic where
 the Euclidean metric chatters: a difference in the last bit of one multiply-add grows into a
 different trajectory within seconds. Built with ``-march=native``, the compiler vectorises
@@ -26,6 +32,8 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import time
+from concurrent.futures import Future, ThreadPoolExecutor
 import hashlib
 import os
 import shutil
@@ -123,6 +131,33 @@ def build_library(name: str, source: bytes, key_extra: bytes = b"",
     return lib
 
 
+def build_jobs() -> int:
+    """How many compilers run at once: ``$PAPER_REPRO_BUILD_JOBS``, else one per core this
+    process may use."""
+    value = os.environ.get("PAPER_REPRO_BUILD_JOBS")
+    if value is not None:
+        if not value.isdigit() or int(value) < 1:
+            raise ValueError(f"PAPER_REPRO_BUILD_JOBS must be an integer >= 1, got {value!r}")
+        return int(value)
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
+        os.cpu_count() or 1)
+
+
+_BUILDERS: dict[int, ThreadPoolExecutor] = {}
+"""One pool of compiler threads per process (a forked child starts its own)."""
+
+
+def build_in_background(name: str, source: bytes, key_extra: bytes = b"") -> Future:
+    """:func:`build_library` in a pool of :func:`build_jobs` threads; the future's result is
+    the library's path. The threads only wait for gcc, so they run in parallel. A process that
+    ends waits for the builds it started: what it compiled stays in the cache."""
+    pool = _BUILDERS.get(os.getpid())
+    if pool is None:
+        pool = _BUILDERS[os.getpid()] = ThreadPoolExecutor(build_jobs(),
+                                                           thread_name_prefix="gcc")
+    return pool.submit(build_library, name, source, key_extra)
+
+
 class DamagedLibraryWarning(UserWarning):
     """A damaged compiled library was moved aside and built again."""
 
@@ -198,28 +233,56 @@ class NativeFunction:
     that stay at one address: fill the inputs in place, call, read the outputs. This skips
     CasADi's argument conversion, which costs more than small functions themselves. Every
     output must be dense.
+
+    With ``background=True`` the library is compiled by :func:`build_in_background` and
+    loaded at the first call (or :meth:`load`); the buffers exist at once.
     """
 
-    def __init__(self, fn: ca.Function):
+    def __init__(self, fn: ca.Function, background: bool = False):
         for i in range(fn.n_out()):
             if not fn.sparsity_out(i).is_dense():
                 raise ValueError(f"output {fn.name_out(i)!r} of {fn.name()} must be dense")
         self.name = fn.name()
-        self._lib = load_library(fn.name(), function_source(fn),
-                                 key_extra=ca.__version__.encode())
-        self._fn = getattr(self._lib, self.name)
         self.inputs = [np.zeros(fn.size_in(i), order="F") for i in range(fn.n_in())]
         self.outputs = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]
+        self._source = function_source(fn)
+        self._key_extra = ca.__version__.encode()
+        self._fn = None
+        self._build = (build_in_background(self.name, self._source, self._key_extra)
+                       if background else None)
+        self._builder = os.getpid()
+        if not background:
+            self.load()
+
+    @property
+    def source_bytes(self) -> int:
+        """The size of the generated C, bytes."""
+        return len(self._source)
+
+    def load(self) -> float:
+        """Load the library (waiting for its build, if one runs); the seconds spent waiting,
+        0 once loaded."""
+        if self._fn is not None:
+            return 0.0
+        start = time.perf_counter()
+        if self._build is not None and (self._builder == os.getpid() or self._build.done()):
+            self._build.result()  # a build error surfaces here, at the first call
+        # (in a forked child the parent's build thread does not exist: load_library builds)
+        lib = load_library(self.name, self._source, key_extra=self._key_extra)
         sz = [ctypes.c_longlong() for _ in range(4)]
-        getattr(self._lib, f"{self.name}_work")(*[ctypes.byref(v) for v in sz])
+        getattr(lib, f"{self.name}_work")(*[ctypes.byref(v) for v in sz])
         n_arg, n_res, n_iw, n_w = (v.value for v in sz)
-        self._arg = (_DOUBLE_P * max(n_arg, fn.n_in()))(
+        self._arg = (_DOUBLE_P * max(n_arg, len(self.inputs)))(
             *[a.ctypes.data_as(_DOUBLE_P) for a in self.inputs])
-        self._res = (_DOUBLE_P * max(n_res, fn.n_out()))(
+        self._res = (_DOUBLE_P * max(n_res, len(self.outputs)))(
             *[r.ctypes.data_as(_DOUBLE_P) for r in self.outputs])
         self._iw = (ctypes.c_longlong * max(n_iw, 1))()
         self._w = (ctypes.c_double * max(n_w, 1))()
+        self._lib, self._fn = lib, getattr(lib, self.name)
+        return time.perf_counter() - start
 
     def __call__(self) -> None:
+        if self._fn is None:
+            self.load()
         if self._fn(self._arg, self._res, self._iw, self._w, 0):
             raise RuntimeError(f"{self.name} failed")

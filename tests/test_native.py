@@ -1,5 +1,7 @@
 """Building, caching and calling the package's C code."""
 
+import os
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -62,6 +64,47 @@ def test_native_function_matches_casadi(cache):
     expected = [np.asarray(v).ravel(order="F") for v in fn(xv, pv)]
     for got, want in zip(native.outputs, expected):
         np.testing.assert_allclose(got, want, rtol=1e-15)
+
+
+@pytest.mark.parametrize("start", ["call", "load"])
+def test_a_function_built_in_the_background_is_the_same_function(cache, start):
+    """Compiled by the pool of gcc threads and loaded at the first call (or load()), a
+    function gives the outputs of the one built in the foreground, from the same library;
+    once loaded, load() waits for nothing."""
+    x = ca.SX.sym("x", 4)
+    fn = ca.Function("later", [x], [ca.densify(ca.exp(x) * ca.sumsqr(x))])
+    background = _native.NativeFunction(fn, background=True)
+    assert background.source_bytes == len(_native.function_source(fn))
+    background.inputs[0][:, 0] = [0.3, -1.0, 2.0, 0.0]
+    if start == "load":
+        assert background.load() >= 0.0
+    background()
+    foreground = _native.NativeFunction(fn)
+    foreground.inputs[0][:, 0] = background.inputs[0][:, 0]
+    foreground()
+    assert background.outputs[0].tobytes() == foreground.outputs[0].tobytes()
+    assert background.load() == 0.0
+    assert len(list(cache.glob("later_*.so"))) == 1
+
+
+def test_a_failed_background_build_is_reported_at_the_first_call(cache):
+    future = _native.build_in_background("broken_later", b"this is not C either\n")
+    with pytest.raises(RuntimeError, match="failed to build broken_later"):
+        future.result()
+
+
+@pytest.mark.parametrize("value", ["0", "-2", "two", ""])
+def test_the_number_of_build_jobs_is_checked(monkeypatch, value):
+    monkeypatch.setenv("PAPER_REPRO_BUILD_JOBS", value)
+    with pytest.raises(ValueError, match="PAPER_REPRO_BUILD_JOBS must be an integer >= 1"):
+        _native.build_jobs()
+
+
+def test_the_number_of_build_jobs_defaults_to_the_cores(monkeypatch):
+    monkeypatch.delenv("PAPER_REPRO_BUILD_JOBS", raising=False)
+    assert _native.build_jobs() == len(os.sched_getaffinity(0))
+    monkeypatch.setenv("PAPER_REPRO_BUILD_JOBS", "3")
+    assert _native.build_jobs() == 3
 
 
 def test_sparse_outputs_are_refused(cache):

@@ -346,14 +346,26 @@ def throughput() -> str:
     return out
 
 
-MACHINE_BLOCKS = frozenset({"regeneration", "ground_robot", "solver_speed_encounter",
+def build_time() -> str:
+    """``figures/build_time/``: building each configuration's controller from an empty
+    compile cache, and again from a warm one."""
+    t = pd.read_csv(paths.figures_dir() / "build_time" / "build_time.csv")
+    rows = [[r.configuration, f"{r.libraries}", f"{r.source_MB:.2f}", f"{r.controller_s:.1f}",
+             f"{r.first_step_s:.1f}", f"{r.all_built_s:.1f}", f"{r.gcc_peak_MB:,.0f}",
+             f"{r.warm_first_step_s:.2f}"] for r in t.itertuples()]
+    return fmt.markdown_table(
+        ["configuration", "libraries", "C source, MB", "controller built, s", "first step, s",
+         "all compiled, s", "largest gcc, MB", "first step, warm cache, s"], rows)
+
+
+MACHINE_BLOCKS = frozenset({"build_time", "regeneration", "ground_robot", "solver_speed_encounter",
                             "solver_speed_crossing", "throughput", "swept_pillar",
                             "guidance_cost", "moving_obstacles_tails"})
 """Blocks quoting what the machine measured: rendered like the others, never asserted (they
 change with every regeneration)."""
 
 BLOCKS: dict[str, Callable[[], str]] = {
-    "verdict": verdict, "regeneration": regeneration,
+    "verdict": verdict, "regeneration": regeneration, "build_time": build_time,
     "summary": summary, "fidelity": fidelity, "ground_robot": ground_robot,
     "solver_speed_encounter": lambda: solver_speed("encounter"),
     "solver_speed_crossing": lambda: solver_speed("crossing"),

@@ -82,6 +82,7 @@ SETS = (
     EvidenceSet("throughput",
                 "python benchmarks/throughput.py --steps 20000 --scenario paper --save",
                 timed=True, cores=2),
+    EvidenceSet("build_time", "python benchmarks/build_time.py --save", timed=True, cores=2),
     EvidenceSet("throughput/profile", "python benchmarks/profile_step.py --save",
                 after=("throughput",), timed=True),
     EvidenceSet("studies/monte_carlo", "python -m paper_repro study monte_carlo", _STUDY),

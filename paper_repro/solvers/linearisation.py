@@ -177,7 +177,9 @@ class LinearisationLadder:
     ocp : the problem; its ``scan.capacity`` is the largest rung.
     capacities : the smaller rungs.
     compile : build C (cached, :class:`~paper_repro._native.NativeFunction`); without it, or
-        without a compiler, one rung evaluated in CasADi's virtual machine.
+        without a compiler, one rung evaluated in CasADi's virtual machine. The rungs are
+        compiled in the background, one gcc per core; a rung is waited for when a scan first
+        needs it (:meth:`wait` waits for all).
     values : also build each rung's values-only function (what the line search evaluates);
         without a line search it is never called, and not compiling it halves the first
         build on a new machine.
@@ -196,15 +198,25 @@ class LinearisationLadder:
             self.rungs = [Rung(ocp.scan, fn, linearisation(ocp, values_only=True)
                                if values else None)]
         else:
-            self.rungs = []
-            for cap in sorted({c for c in capacities if c < top} | {top}):
+            caps = sorted({c for c in capacities if c < top} | {top})
+            # Compiled in the background: the smallest first (a flight starts with little
+            # in view), then the largest, which takes longest (a few seconds to a minute).
+            built = {}
+            for cap in caps[:1] + caps[:0:-1]:
                 scan = ocp.scan.with_capacity(cap)
-                self.rungs.append(Rung(
-                    scan, NativeFunction(fn if cap == top else linearisation(ocp, scan)),
-                    NativeFunction(linearisation(ocp, scan, values_only=True))
-                    if values else None))
+                built[cap] = Rung(
+                    scan, NativeFunction(fn if cap == top else linearisation(ocp, scan),
+                                         background=True),
+                    NativeFunction(linearisation(ocp, scan, values_only=True),
+                                   background=True) if values else None)
+            self.rungs = [built[cap] for cap in caps]
         self._capacities = [rung.scan.capacity for rung in self.rungs]
         self._last = {}  # capacity -> (the regions' bytes, their packing): see pack()
+
+    def wait(self) -> float:
+        """Wait until every rung is compiled and loaded; the seconds waited."""
+        return sum(fn.load() for rung in self.rungs for fn in rung[1:]
+                   if isinstance(fn, NativeFunction))
 
     def for_scan(self, visible) -> Rung:
         """The rung of the smallest capacity that holds the scan."""
