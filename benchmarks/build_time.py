@@ -34,8 +34,8 @@ import tempfile
 from pathlib import Path
 
 import pandas as pd
-
 from _table import print_table
+
 from paper_repro import paths
 from paper_repro.evidence.golden import stamp
 

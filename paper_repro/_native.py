@@ -32,14 +32,14 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import time
-from concurrent.futures import Future, ThreadPoolExecutor
 import hashlib
 import os
 import shutil
 import subprocess
 import tempfile
+import time
 import warnings
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 import casadi as ca

@@ -1,10 +1,13 @@
 """A second vehicle through the same description, the same two solvers and the same closed
 loop: the unicycle in a planar scene (p = 2)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from paper_repro.sim.loop import simulate
+from paper_repro.sim.result import SimulationResult
 from paper_repro.solvers.factory import make_controller
 from paper_repro.solvers.rti import RealTimeNMPC
 from paper_repro.vehicles.unicycle import unicycle_config, unicycle_model
@@ -96,3 +99,27 @@ def test_a_planar_vehicle_needs_a_planar_scene():
     config = unicycle_config()
     with pytest.raises(ValueError, match="2 position states"):
         simulate(config, model=unicycle_model(), scene=make_scene("encounter"), max_steps=1)
+
+
+def test_a_saved_run_names_its_vehicle_s_columns_and_keeps_its_positions(runs, tmp_path):
+    """The result carries y = h(x) for every state and the unicycle's names: the frame and the
+    plots read the vehicle from the run, not from the shape of its arrays."""
+    run = runs["rti"]
+    assert run.positions.shape == (run.steps + 1, 2)
+    np.testing.assert_array_equal(run.positions, run.x[:, :2])  # h selects (p_x, p_y)
+    again = SimulationResult.load(run.save(tmp_path / "run"))
+    np.testing.assert_array_equal(again.positions, run.positions)
+    frame = again.to_frame()
+    assert {"p_x", "p_y", "theta", "v", "omega", "p_x_a", "p_y_a", "v_a"} <= set(frame.columns)
+    assert "x" not in frame.columns and "f1" not in frame.columns
+    np.testing.assert_array_equal(frame["theta"], run.x[:-1, 2])
+
+
+def test_a_vehicle_s_names_are_checked():
+    model = unicycle_model()
+    with pytest.raises(ValueError, match="state_names must be 3 distinct identifiers"):
+        dataclasses.replace(model, state_names=("p_x", "p_x", "theta"))
+    with pytest.raises(ValueError, match="input_names must be 2 distinct identifiers"):
+        dataclasses.replace(model, input_names=("v",))
+    assert dataclasses.replace(model, state_names=()).description()["states"] == ["x0", "x1",
+                                                                                  "x2"]

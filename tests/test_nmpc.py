@@ -288,4 +288,5 @@ def test_cli_run_saves_a_loadable_result(tmp_path, capsys, solver):
     assert result.steps == 3 and result.config.solver.nlp_solver == solver
     frame = result.to_frame()
     assert len(frame) == 3 and {"t", "x", "f1", "x_a", "clearance"} <= set(frame.columns)
+    np.testing.assert_array_equal(result.positions, result.x[:, :3])
     assert result.meta["casadi"] and "git_commit" in result.meta

@@ -130,7 +130,7 @@ def sign_changes(du, deadband: float = DEFAULT_DEADBAND) -> int:
 def tracking_error(result) -> np.ndarray:
     """e = y − y_t, (K, 3) m: position minus the set-point active at each step."""
     targets = np.asarray(result.targets, float)
-    return result.x[:-1, :3] - targets[np.asarray(result.target_index, int)]
+    return result.positions[:-1] - targets[np.asarray(result.target_index, int)]
 
 
 COLLISION_CLEARANCE = 0.35

@@ -28,7 +28,7 @@ def animate_flight(result, scene, path, frames: int = 100, fps: int = 12, dpi: i
     """
     if not (isinstance(frames, int) and frames >= 1):
         raise ValueError(f"frames must be an integer >= 1, got {frames!r}")
-    pos = result.x[:, :3]
+    pos = result.positions
     r_s = result.config.sensor.range
     lidar = Lidar(scene.clouds, r_s)
     steps = np.unique(np.linspace(0, len(pos) - 1, frames).round().astype(int))

@@ -40,7 +40,7 @@ def plot_flight_3d(result, scene, ax=None, sphere_steps=None, n_spheres: int = 4
     max_points : cap on drawn trajectory points.
     """
     fig, ax = axes3d_or_new(ax)
-    pos = result.x[:, :3]
+    pos = result.positions
     for i, cloud in enumerate(scene.clouds):
         ax.scatter(*cloud.T, s=2, color=CLOUD_COLOR, alpha=0.6, depthshade=False,
                    label="point clouds" if i == 0 else None)
@@ -68,7 +68,7 @@ def plot_projection(result, scene, plane: str = "xz", ax=None, max_points: int =
     for i, cloud in enumerate(scene.clouds):
         ax.scatter(cloud[:, axes_idx[0]], cloud[:, axes_idx[1]], s=3, color=CLOUD_COLOR,
                    alpha=0.6, lw=0, label="point clouds" if i == 0 else None)
-    pos = result.x[:, :3]
+    pos = result.positions
     idx = stride_indices(len(pos), max_points)
     ax.plot(pos[idx, axes_idx[0]], pos[idx, axes_idx[1]], color="black", lw=1.2,
             label="trajectory")
@@ -158,7 +158,7 @@ def plot_states(result, axes=None, max_points: int = MAX_POINTS, t_range=None):
     """
     fig, axes = axes_column(axes, 3, figsize=(7, 5.5))
     k = steps_in(result, t_range)
-    t, pos, pos_a = result.t[k], result.x[:-1, :3][k], result.x_a[k, :3]
+    t, pos, pos_a = result.t[k], result.positions[k], result.x_a[k, :3]
     target = np.asarray(result.targets, float)[np.asarray(result.target_index, int)[k]]
     for i, ax in enumerate(axes):
         name = "xyz"[i]

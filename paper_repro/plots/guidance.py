@@ -29,7 +29,7 @@ def plot_guided_passage(runs: dict, ax=None):
                label="point clouds")
     span = [points[:, :2].min(0) - 6.0, points[:, :2].max(0) + 6.0]
     for arm, r in runs.items():
-        pos = r.x[:, :2]
+        pos = r.positions[:, :2]
         idx = stride_indices(len(pos))
         colour = ARM_COLOURS.get(arm)
         ax.plot(pos[idx, 0], pos[idx, 1], color=colour, lw=1.4,
@@ -67,7 +67,7 @@ def plot_guided_thrusts(runs: dict, axes=None):
         top.plot(r.t[idx], r.u[idx, 0], color=colour, lw=0.9, label=arm)
         set_points = (r.set_points if r.set_points is not None
                       else np.asarray(r.targets)[r.target_index])
-        gap = np.linalg.norm(set_points - r.x[:-1, :3], axis=1)
+        gap = np.linalg.norm(set_points - r.positions[:-1], axis=1)
         bottom.plot(r.t[idx], gap[idx], color=colour, lw=0.9, label=arm)
     top.set_ylabel("f1 [N]")
     bottom.set_ylabel("‖y_t − y‖ [m]")

@@ -122,7 +122,7 @@ def _draw_crossing(ax, result, k: int, plane: str, velocities=None, stages=(),
     cfg = result.config
     r_s = cfg.sensor.range
     t = float(result.t[min(k, len(result.t) - 1)])
-    pos = result.x[:, :3]
+    pos = result.positions
     artists = []
     clouds = result.scene.clouds_at(t)
     for c in clouds:
@@ -229,7 +229,7 @@ def plot_crossing_closest(results, labels, velocities=None, planes=("xy", "yz"),
             ax = axes[row, col]
             k = int(np.argmin(result.clearance))
             t = float(result.t[k])
-            pos = result.x[:, :3]
+            pos = result.positions
             rest = pos[k:]
             idx = stride_indices(len(rest), MAX_POINTS)
             ax.plot(rest[idx, i0], rest[idx, i1], color="0.6", lw=0.8, zorder=1)

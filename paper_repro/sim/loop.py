@@ -141,7 +141,7 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     plan: NMPCSolution | None = None
     errors, last_good = [], x.copy()
     meta = run_metadata()  # before flying: the commit and versions that produce this run
-    meta["hazards"] = hazards
+    meta["hazards"], meta["vehicle"] = hazards, model.description()
     if callable(getattr(plant, "reset", None)):
         plant.reset(x.copy())
     bar = step_progress(sim.max_steps, progress)
@@ -180,7 +180,7 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
         meta["fault"] = (f"{stop.faults_in_a_row} steps in a row without a usable state or "
                          f"solve (last: {sol.status}{': ' + errors[-1] if errors else ''})")
 
-    arrays = log.arrays(x)
+    arrays = log.arrays(x, y)
     # The true clearance of every step at once, after the flight: it is only logged, and one
     # batched KD-tree query costs a fraction of one query per step.
     arrays["clearance"] = TrueClearance(scene).along(log.y[:log.n], arrays["t"])
@@ -311,7 +311,7 @@ class _Log:
         self.iterations = np.empty(capacity, dtype=int)
         self.success = np.empty(capacity, dtype=bool)
         self.status = np.empty(capacity, dtype=object)
-        self.y = np.empty((capacity, ny))  # the position the clearance is measured at
+        self.y = np.empty((capacity + 1, ny))  # the position the clearance is measured at
         self.target_index = np.empty(capacity, dtype=int)
         self.visible_points = np.empty(capacity, dtype=int)
         self.dropped_points = np.empty(capacity, dtype=int)
@@ -325,14 +325,14 @@ class _Log:
         self.visible_points[k], self.dropped_points[k] = visible, dropped
         self.n = k + 1
 
-    def arrays(self, x_last) -> dict:
-        """The recorded rows (and ``x`` with the state after the last step appended); the
-        clearance is not among them (:meth:`_TrueClearance.along`)."""
+    def arrays(self, x_last, y_last) -> dict:
+        """The recorded rows (and ``x``, ``y`` with the state after the last step and its
+        output appended); the clearance is not among them (:meth:`TrueClearance.along`)."""
         n = self.n
-        self.x[n] = x_last
+        self.x[n], self.y[n] = x_last, y_last
         out = {k: getattr(self, k)[:n].copy() for k in RESULT_ARRAYS
                if k not in ("x", "clearance")}
-        out["x"] = self.x[:n + 1].copy()
+        out["x"], out["y"] = self.x[:n + 1].copy(), self.y[:n + 1].copy()
         out["status"] = self.status[:n].astype(str)
         for name in ("region_velocities", "set_points"):
             if getattr(self, name) is not None:

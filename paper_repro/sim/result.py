@@ -21,6 +21,10 @@ from paper_repro.world.scene import Scene
 RESULT_ARRAYS = ("t", "x", "u", "x_a", "u_a", "solve_time", "iterations", "success", "clearance",
            "target_index", "visible_points", "dropped_points")
 
+OPTIONAL_ARRAYS = ("region_velocities", "set_points", "y")
+"""Arrays a result holds only where the run has them (see :class:`SimulationResult`)."""
+
+
 OUTCOMES = ("completed", "stalled", "step_limit", "fault")
 """How a run ends: ``completed`` (every target reached, or for a passage the finish line
 crossed), ``stalled`` (the NMPC deadlocked, see
@@ -53,12 +57,17 @@ class SimulationResult:
         regions are taken to stay where they are seen).
     set_points : (K, p) m, the set-point y_t the guide handed the controller at each step
         (``guide.planner`` ``"grid"``); ``None`` when it is the active target (the paper).
+    y : (K+1, p) m, the output y = h(x) of every state of ``x``: the point that keeps clear
+        and tracks the targets (the quadrotor's position). ``None`` in a result saved before
+        it was stored; :attr:`positions` then reads the quadrotor's x[:, :3].
     targets : (k, 3) m.   reached : (k,) step at which each target was reached (−1 if not).
     outcome : one of :data:`OUTCOMES`.
     scene : the :class:`~paper_repro.world.scene.Scene` flown, clouds and motions included (saved
         with the result, so a run always redraws against its own points; for moving regions,
         ``scene.clouds_at(t)`` gives them at time t).
-    config : the :class:`~paper_repro.config.Config` of the run.   meta : versions, machine.
+    config : the :class:`~paper_repro.config.Config` of the run.
+    meta : versions, machine, and ``meta["vehicle"]``: the names of the states and inputs
+        (:meth:`~paper_repro.vehicles.base.VehicleModel.description`).
     """
 
     t: np.ndarray
@@ -82,6 +91,12 @@ class SimulationResult:
     meta: dict = field(default_factory=dict)
     region_velocities: np.ndarray | None = None
     set_points: np.ndarray | None = None
+    y: np.ndarray | None = None
+
+    @property
+    def positions(self) -> np.ndarray:
+        """(K+1, p) m: the output y of every state (see ``y``)."""
+        return self.y if self.y is not None else self.x[:, :3]
 
     @property
     def steps(self) -> int:
@@ -108,20 +123,16 @@ class SimulationResult:
                 f"{np.percentile(st, 95):.2g} ms, failed solves {self.failures}")
 
     def to_frame(self):
-        """One row per step: t, the state, the inputs, the artificial equilibrium, solver data.
-        The quadrotor's columns are named (x … p_psi, f1 … f4, x_a, y_a, z_a, f1_a … f4_a);
-        another vehicle's are ``x0 …``, ``u0 …``, ``x0_a …``, ``u0_a …``."""
+        """One row per step: t, the state, the inputs, the artificial equilibrium's position
+        and inputs, solver data. Columns are named by the vehicle
+        (:attr:`~paper_repro.vehicles.base.VehicleModel.state_names`; the quadrotor's
+        x … p_psi, f1 … f4, x_a, y_a, z_a, f1_a … f4_a), ``x0 …``, ``u0 …`` where it names
+        none."""
         import pandas as pd
 
-        nx, nu = self.x.shape[1], self.u.shape[1]
-        if (nx, nu) == (12, 4):
-            names = ["x", "y", "z", "phi", "theta", "psi", "vx", "vy", "vz", "p_phi",
-                     "p_theta", "p_psi"]
-            inputs = [f"f{i + 1}" for i in range(4)]
-            rest = [(f"{c}_a", i) for i, c in enumerate("xyz")]
-        else:
-            names, inputs = [f"x{i}" for i in range(nx)], [f"u{i}" for i in range(nu)]
-            rest = [(f"x{i}_a", i) for i in range(nx)]
+        vehicle = self.meta.get("vehicle") or _saved_before_names(self.x, self.u)
+        names, inputs = vehicle["states"], vehicle["inputs"]
+        rest = [(f"{names[i]}_a", i) for i in vehicle["position"]]
         data = {"t": self.t}
         data.update({n: self.x[:-1, i] for i, n in enumerate(names)})
         data.update({n: self.u[:, i] for i, n in enumerate(inputs)})
@@ -142,7 +153,7 @@ class SimulationResult:
         out.mkdir(parents=True, exist_ok=True)
         arrays = {k: getattr(self, k) for k in RESULT_ARRAYS}
         clouds = {f"cloud_{i}": c for i, c in enumerate(self.scene.clouds)}
-        for name in ("region_velocities", "set_points"):
+        for name in OPTIONAL_ARRAYS:
             if getattr(self, name) is not None:
                 arrays[name] = getattr(self, name)
         np.savez_compressed(out / "result.npz", status=self.status.astype(str),
@@ -178,6 +189,18 @@ class SimulationResult:
             raise DamagedResult(d, "config.json", f"does not describe its arrays ({exc})") from None
         return cls(config=config, meta=payload.get("meta", {}), outcome=payload["outcome"],
                    scene=scene, **arrays)
+
+
+def _saved_before_names(x: np.ndarray, u: np.ndarray) -> dict:
+    """The vehicle of a result saved before ``meta["vehicle"]`` was stored: the quadrotor, by
+    its shape, or unnamed columns."""
+    from paper_repro.vehicles.quadrotor import N_INPUTS, N_STATES, STATE_NAMES
+
+    if x.shape[1] == N_STATES and u.shape[1] == N_INPUTS:
+        return {"states": list(STATE_NAMES), "inputs": [f"f{i + 1}" for i in range(N_INPUTS)],
+                "position": [0, 1, 2]}
+    return {"states": [f"x{i}" for i in range(x.shape[1])],
+            "inputs": [f"u{i}" for i in range(u.shape[1])], "position": []}
 
 
 class DamagedResult(ValueError):
@@ -244,6 +267,14 @@ def _read_config(d: Path) -> dict:
         if key not in payload:
             raise DamagedResult(d, "config.json", f"lacks {key!r}")
     return payload
+
+
+def read_arrays(directory, *names: str) -> dict[str, np.ndarray]:
+    """The arrays ``names`` of the result saved in ``directory``, those it holds, without
+    reading the rest (its scene, its config); unchecked, unlike :meth:`SimulationResult.load`.
+    """
+    with np.load(Path(directory) / "result.npz") as z:
+        return {k: z[k] for k in names if k in z.files}
 
 
 def _read_arrays(d: Path, n_regions: int) -> dict:

@@ -35,6 +35,7 @@ import numpy as np
 from paper_repro import paths
 from paper_repro.config import Config
 from paper_repro.progress import PrefixedLines, duration, heartbeat, print_now
+from paper_repro.sim.result import read_arrays
 from paper_repro.studies.runs import RunSpec, ensure_result, usable_or_set_aside
 
 DESCRIPTION = """\
@@ -341,8 +342,8 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
             ran.append(nb.name)
 
     for metric, directory in result_dirs.items():
-        with np.load(Path(directory) / "result.npz") as z:
-            reached, steps = z["reached"], len(z["t"])
+        saved = read_arrays(directory, "reached", "t")
+        reached, steps = saved["reached"], len(saved["t"])
         if np.any(reached < 0):
             log(f"note: the {metric} run stopped after {steps} steps with "
                 f"{int(np.sum(reached >= 0))}/{len(reached)} targets reached; its figures "

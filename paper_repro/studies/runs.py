@@ -28,8 +28,6 @@ import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from paper_repro import paths
 from paper_repro.config import Config
 from paper_repro.paths import atomic_text, json_hash
@@ -249,8 +247,9 @@ def _holds_what_it_needs(directory: Path, spec: RunSpec) -> bool:
     (results saved before the loop logged them are flown again, once)."""
     if spec.config.nmpc.prediction == "static":
         return True
-    with np.load(directory / "result.npz") as z:
-        return "region_velocities" in z.files
+    from paper_repro.sim.result import read_arrays
+
+    return "region_velocities" in read_arrays(directory, "region_velocities")
 
 
 def fly(spec: RunSpec, controller=None, progress: bool | None = None):

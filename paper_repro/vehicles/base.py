@@ -86,6 +86,9 @@ class VehicleModel:
         these states at the scene's start.
     velocity : indices of the states that are the vehicle's velocity (m/s), which the closed
         loop reads to tell a stall; ``()``: the output's change over a step tells it instead.
+    state_names, input_names : a name for each state and each input (identifiers): the
+        columns of :meth:`~paper_repro.sim.result.SimulationResult.to_frame`. ``()``:
+        ``x0, x1, …`` and ``u0, u1, …``.
     """
 
     name: str
@@ -99,6 +102,8 @@ class VehicleModel:
     rest_input: tuple[float, ...] | None = None
     position: tuple[int, ...] = ()
     velocity: tuple[int, ...] = ()
+    state_names: tuple[str, ...] = ()
+    input_names: tuple[str, ...] = ()
 
     def __post_init__(self):
         if not (isinstance(self.name, str) and self.name.isidentifier()):
@@ -135,6 +140,12 @@ class VehicleModel:
                     and all(a < b for a, b in zip(e.lower, e.upper))):
                 raise ValueError(f"equilibria.lower < equilibria.upper must hold for all {na} "
                                  "parameters (or both be None)")
+        for name, n in (("state_names", nx), ("input_names", nu)):
+            v = getattr(self, name)
+            if v and not (len(v) == n and len(set(v)) == n
+                          and all(isinstance(c, str) and c.isidentifier() for c in v)):
+                raise ValueError(f"{name} must be {n} distinct identifiers (or empty), got "
+                                 f"{v!r}")
         for name in ("position", "velocity"):
             if not all(isinstance(i, int) and 0 <= i < nx for i in getattr(self, name)):
                 raise ValueError(f"{name} must hold state indices in [0, {nx}), got "
@@ -156,6 +167,14 @@ class VehicleModel:
     def ny(self) -> int:
         """p, the dimension of the output y (2 or 3)."""
         return int(self.output.size1_out(0))
+
+    def description(self) -> dict:
+        """What a saved run needs to read its arrays without the model: the vehicle's name,
+        the names of its states and inputs, and which states are its position."""
+        return {"name": self.name,
+                "states": list(self.state_names or (f"x{i}" for i in range(self.nx))),
+                "inputs": list(self.input_names or (f"u{i}" for i in range(self.nu))),
+                "position": list(self.position)}
 
     def rest(self, x) -> tuple[np.ndarray, np.ndarray]:
         """(x_a, u_a): the equilibrium a guess rests at, for the vehicle in state ``x``.

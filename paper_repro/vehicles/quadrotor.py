@@ -32,6 +32,9 @@ from paper_repro.vehicles.base import Equilibria, VehicleModel, rk4
 
 N_STATES = 12
 N_INPUTS = 4
+STATE_NAMES = ("x", "y", "z", "phi", "theta", "psi", "vx", "vy", "vz", "p_phi", "p_theta",
+               "p_psi")
+"""The state x = (position, Euler angles φ θ ψ, velocity, the angles' rates), eq. (1)."""
 
 
 def continuous_dynamics(x, u, params: QuadrotorParams | None = None) -> np.ndarray:
@@ -90,7 +93,8 @@ def quadrotor_model(config: Config | None = None) -> VehicleModel:
     return VehicleModel(
         "quadrotor", symbolic_dynamics(cfg.quadrotor), ca.Function("h", [x], [x[:3]]),
         p.state_lower, p.state_upper, p.input_lower, p.input_upper, equilibria,
-        position=(0, 1, 2), velocity=(6, 7, 8))
+        position=(0, 1, 2), velocity=(6, 7, 8), state_names=STATE_NAMES,
+        input_names=tuple(f"f{i + 1}" for i in range(N_INPUTS)))
 
 
 def plant_step(x, u, ts: float, params: QuadrotorParams | None = None,

@@ -46,7 +46,8 @@ def unicycle_model(max_speed: float = 1.0, max_turn_rate: float = 1.5,
         state_lower=(-half_width, -half_width, -4 * np.pi),
         state_upper=(half_width, half_width, 4 * np.pi),
         input_lower=(-max_speed, -max_turn_rate), input_upper=(max_speed, max_turn_rate),
-        equilibria=at_rest, position=(0, 1))
+        equilibria=at_rest, position=(0, 1), state_names=("p_x", "p_y", "theta"),
+        input_names=("v", "omega"))
 
 
 def unicycle_config(metric: str = "smooth", solver: str = "rti") -> Config:
