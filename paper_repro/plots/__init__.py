@@ -14,28 +14,22 @@
 ``guidance``       a passage flown with and without the local map and the guide
 =================  ==================================================================
 
+This namespace holds the figures, :func:`save_figure` and :func:`show_figure`, and the few
+helpers the notebooks call. The axes helpers and colours stay in their modules.
+
 The paper's figures (Section V): Fig. 1 :func:`plot_flight_3d`; Figs. 2, 3
 :func:`plot_projection` (``plane="xz"`` / ``"xy"``); Figs. 4, 8 :func:`plot_thrusts`;
 Figs. 5, 7 :func:`plot_tracking_errors`; Fig. 6 :func:`plot_states`.
 """
 
 from paper_repro.plots.animation import animate_flight, save_animation
-from paper_repro.plots.barrier import penalty_values, plot_barrier_penalty
+from paper_repro.plots.barrier import plot_barrier_penalty
 from paper_repro.plots.clock import plot_clock_levers, plot_flight_clocks
 from paper_repro.plots.common import (
-    AXIS_LABELS,
     CLOUD_COLOR,
-    MAX_POINTS,
     SPHERE_COLOR,
-    axes3d_or_new,
-    axes_column,
-    axes_or_new,
-    axes_row,
-    draw_sphere,
-    envelope_indices,
     save_figure,
     show_figure,
-    stride_indices,
 )
 from paper_repro.plots.distance import (
     plot_distance_slice,
@@ -48,7 +42,6 @@ from paper_repro.plots.distance import (
 from paper_repro.plots.flight import (
     avoidance_window,
     lidar_instants,
-    mark_start_and_targets,
     plot_flight_3d,
     plot_input_spectrum,
     plot_projection,
@@ -57,15 +50,10 @@ from paper_repro.plots.flight import (
     plot_states,
     plot_thrusts,
     plot_tracking_errors,
-    setup_label,
-    steps_in,
     view_window,
-    workspace_limits,
 )
-from paper_repro.plots.guidance import ARM_COLOURS, plot_guided_passage, plot_guided_thrusts
+from paper_repro.plots.guidance import plot_guided_passage, plot_guided_thrusts
 from paper_repro.plots.moving import (
-    GHOST_COLOR,
-    PREDICTION_COLOURS,
     animate_crossing,
     plot_clearance_time,
     plot_crossing_closest,
@@ -77,7 +65,6 @@ from paper_repro.plots.sensing import (
     plot_scan_change_study,
     plot_scan_change_thrusts,
     plot_sensing_window,
-    scan_change_times,
 )
 from paper_repro.plots.studies import (
     METRIC_COLOURS,
@@ -92,23 +79,11 @@ from paper_repro.plots.tuning import plot_front, plot_heldout, plot_importances
 
 __all__ = [
     "animate_crossing",
-    "ARM_COLOURS",
     "animate_flight",
     "avoidance_window",
-    "axes3d_or_new",
-    "axes_column",
-    "axes_or_new",
-    "axes_row",
-    "AXIS_LABELS",
     "CLOUD_COLOR",
-    "draw_sphere",
-    "envelope_indices",
-    "GHOST_COLOR",
     "lidar_instants",
-    "mark_start_and_targets",
-    "MAX_POINTS",
     "METRIC_COLOURS",
-    "penalty_values",
     "plot_barrier_penalty",
     "plot_clearance_ecdf",
     "plot_clearance_time",
@@ -142,18 +117,12 @@ __all__ = [
     "plot_sweep",
     "plot_thrusts",
     "plot_tracking_errors",
-    "PREDICTION_COLOURS",
     "prediction_velocities",
     "save_animation",
     "save_figure",
     "show_figure",
-    "scan_change_times",
-    "setup_label",
     "slice_grid",
     "slice_through",
     "SPHERE_COLOR",
-    "steps_in",
-    "stride_indices",
     "view_window",
-    "workspace_limits",
 ]
