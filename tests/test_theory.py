@@ -243,7 +243,7 @@ def test_g_at_the_equilibrium_and_the_last_step(ocp):
 
 
 def test_the_penalty_shape_stated_on_the_barrier_page():
-    from paper_repro.plots import penalty_values
+    from paper_repro.plots.barrier import penalty_values
 
     config = Config()
     for kappa in (2.5, 10.0, 40.0):
@@ -272,7 +272,7 @@ def test_the_penalty_shape_stated_on_the_barrier_page():
 def test_the_penalty_figure_draws_the_ocps_values():
     import matplotlib.pyplot as plt
 
-    from paper_repro.plots import penalty_values, plot_barrier_penalty
+    from paper_repro.plots.barrier import penalty_values, plot_barrier_penalty
 
     config = Config()
     fig = plot_barrier_penalty(config, kappas=(2.5, 10.0), epsilons=(1.0, 3.0), n=51)
