@@ -15,6 +15,7 @@ import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -102,7 +103,7 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     true positions at t. With ``nmpc.prediction`` ``"static"`` (the paper) the
     controller is called as ``ctl.solve(x, target, visible, previous=plan)``; with
     ``"oracle"`` or ``"kalman"`` it is also given ``velocities=``, one (3,) m/s per region of
-    the scan: the regions' true velocities at t (:meth:`~paper_repro.world.lidar.Lidar.velocities`),
+    the scan: the regions' true velocities at t (:func:`~paper_repro.world.truth.scene_velocities`),
     or the estimates of a :class:`paper_repro.world.tracking.RegionTracker` updated with each scan.
 
     The run ends when it is complete (every target reached; for ``kind="passage"`` the finish
@@ -117,41 +118,17 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     if max_steps is not None:
         cfg = dataclasses.replace(cfg, simulation=dataclasses.replace(cfg.simulation,
                                                                       max_steps=max_steps))
-    sim, ts = cfg.simulation, cfg.nmpc.ts
-    scene = scene if scene is not None else mission_scene(sim)
-    model = _vehicle(cfg, controller, model)
-    check_setup(cfg, scene, model)  # an inconsistent mission fails here, before any build
-    x = _start_state(model, scene, initial_state)
-    hazards = setup_hazards(cfg, scene, model)
-    for line in hazards["warnings"]:
-        warnings.warn(f"{scene.name}: {line}", SetupHazardWarning, stacklevel=2)
-    plant = _plant(plant, model, cfg)
-    measure = getattr(plant, "measure", None)
-    state_fault = None if faults is None else faults.state
-    perception = Perception(cfg, scene, None if faults is None else faults.scan)
-    stop = Termination(cfg, scene, model)
-    output = _output_map(model)
-    guide = _guide(cfg, model, perception.local_map)
-    ctl = controller or make_controller(cfg, model)
-    ctl.reset()
-    counters = _SolverCounters(ctl)
-    log = _Log(sim.max_steps, model.nx, model.nu, len(output(x)),
-               None if cfg.nmpc.prediction == "static" else (len(scene.clouds), scene.dim),
-               None if guide is None else scene.dim)
+    f = _assemble(cfg, controller, scene, faults, initial_state, model, plant)
+    ctl, stop, log, perception, guide = f.controller, f.stop, f.log, f.perception, f.guide
+    x, ts = f.x0, cfg.nmpc.ts
     plan: NMPCSolution | None = None
     errors, last_good = [], x.copy()
-    meta = run_metadata()  # before flying: the commit and versions that produce this run
-    meta["hazards"], meta["vehicle"] = hazards, model.description()
-    if callable(getattr(plant, "reset", None)):
-        plant.reset(x.copy())
-    bar = step_progress(sim.max_steps, progress)
+    bar = step_progress(cfg.simulation.max_steps, progress)
     wall = time.perf_counter()
-    y = output(x)
-    for k in range(sim.max_steps):
+    y = f.output(x)
+    for k in range(cfg.simulation.max_steps):
         t, target = k * ts, stop.target
-        measured = x if measure is None else np.asarray(measure(x.copy()), float)
-        if state_fault is not None:
-            measured = state_fault(k, measured.copy())
+        measured = f.measure(k, x)
         seen = perception.sense(k, t, y)
         if seen.velocities is not None:
             log.region_velocities[k] = seen.velocities  # what the controller is handed
@@ -159,17 +136,18 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
         if guide is not None:  # the path's look-ahead, from the map just updated
             set_point = log.set_points[k] = guide.set_point(perception.local_map, y, t, target)
         sol = _solve(ctl, measured, set_point, seen.visible, plan, errors, seen.velocities,
-                     model)
+                     f.model)
         if sol.success:
             plan, last_good = sol, measured
         else:
+            f.counters.failed(sol)
             plan, sol = _fall_back(ctl, sol, plan, last_good)
         stop.count_fault(sol.status)
         u = plan.u[0]
         log.record(k, t, x, y, u, sol, stop.target_index,
                    sum(len(v) for v in seen.visible), seen.dropped)
-        x, y_before = plant.step(x, u), y
-        y = output(x)
+        x, y_before = f.plant.step(x, u), y
+        y = f.output(x)
         ended = stop.after_step(k, x, y, y_before)
         _show_progress(bar, k, stop, sol)
         if ended:
@@ -177,17 +155,80 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
     if bar is not None:
         bar.close()
     if stop.outcome == "fault":
-        meta["fault"] = (f"{stop.faults_in_a_row} steps in a row without a usable state or "
-                         f"solve (last: {sol.status}{': ' + errors[-1] if errors else ''})")
+        f.meta["fault"] = (f"{stop.faults_in_a_row} steps in a row without a usable state or "
+                           f"solve (last: {sol.status}{': ' + errors[-1] if errors else ''})")
+    f.meta.update(wall_time_s=time.perf_counter() - wall, errors=errors)
+    return _result(f, cfg, x, y)
 
-    arrays = log.arrays(x, y)
+
+class _Flight(NamedTuple):
+    """The parts :func:`simulate` wires together, built before the first step."""
+
+    scene: Scene
+    model: VehicleModel
+    x0: np.ndarray
+    plant: object
+    measure: Callable[[int, np.ndarray], np.ndarray]
+    output: Callable[[np.ndarray], np.ndarray]
+    perception: Perception
+    stop: Termination
+    guide: Guide | None
+    controller: Controller
+    counters: _SolverCounters
+    log: _Log
+    meta: dict
+
+
+def _assemble(cfg: Config, controller, scene, faults, initial_state, model, plant) -> _Flight:
+    """Check the mission, then build every part of the flight (the controller last: building
+    it is the slow part). ``meta`` holds the hazards, the vehicle, the commit and versions."""
+    scene = scene if scene is not None else mission_scene(cfg.simulation)
+    model = _vehicle(cfg, controller, model)
+    check_setup(cfg, scene, model)  # an inconsistent mission fails here, before any build
+    x = _start_state(model, scene, initial_state)
+    hazards = setup_hazards(cfg, scene, model)
+    for line in hazards["warnings"]:
+        warnings.warn(f"{scene.name}: {line}", SetupHazardWarning, stacklevel=3)
+    plant = _plant(plant, model, cfg)
+    perception = Perception(cfg, scene, None if faults is None else faults.scan)
+    output = _output_map(model)
+    guide = _guide(cfg, model, perception.local_map)
+    ctl = controller or make_controller(cfg, model)
+    ctl.reset()
+    log = _Log(cfg.simulation.max_steps, model.nx, model.nu, len(output(x)),
+               None if cfg.nmpc.prediction == "static" else (len(scene.clouds), scene.dim),
+               None if guide is None else scene.dim)
+    meta = run_metadata()  # before flying: the commit and versions that produce this run
+    meta["hazards"], meta["vehicle"] = hazards, model.description()
+    if callable(getattr(plant, "reset", None)):
+        plant.reset(x.copy())
+    return _Flight(scene, model, x, plant, _measurement(plant, faults), output, perception,
+                   Termination(cfg, scene, model), guide, ctl, _SolverCounters(ctl), log, meta)
+
+
+def _measurement(plant, faults: Faults | None) -> Callable[[int, np.ndarray], np.ndarray]:
+    """The state the controller is given at step k: the plant's ``measure(x)`` if it has one,
+    else x; then the state fault of ``faults``, if any."""
+    measure = getattr(plant, "measure", None)
+    state_fault = None if faults is None else faults.state
+
+    def measured(k: int, x: np.ndarray) -> np.ndarray:
+        m = x if measure is None else np.asarray(measure(x.copy()), float)
+        return m if state_fault is None else state_fault(k, m.copy())
+    return measured
+
+
+def _result(f: _Flight, cfg: Config, x, y) -> SimulationResult:
+    """The flight's result: the log, the true clearance of every step, the solver counts."""
+    arrays = f.log.arrays(x, y)
     # The true clearance of every step at once, after the flight: it is only logged, and one
     # batched KD-tree query costs a fraction of one query per step.
-    arrays["clearance"] = TrueClearance(scene).along(log.y[:log.n], arrays["t"])
-    meta.update(wall_time_s=time.perf_counter() - wall, errors=errors, scene=scene.name,
-                **counters.since(), **({} if guide is None else {"guide": dict(guide.stats)}))
-    return SimulationResult(targets=stop.targets, reached=stop.reached, outcome=stop.outcome,
-                            scene=scene, config=cfg, meta=meta, **arrays)
+    arrays["clearance"] = TrueClearance(f.scene).along(f.log.y[:f.log.n], arrays["t"])
+    f.meta.update(scene=f.scene.name, **f.counters.since(),
+                  **({} if f.guide is None else {"guide": dict(f.guide.stats)}))
+    return SimulationResult(targets=f.stop.targets, reached=f.stop.reached,
+                            outcome=f.stop.outcome, scene=f.scene, config=cfg, meta=f.meta,
+                            **arrays)
 
 
 def _fall_back(ctl, sol: NMPCSolution, plan: NMPCSolution | None, last_good):
@@ -239,16 +280,26 @@ def _guide(cfg: Config, model: VehicleModel, local_map: VoxelMap | None) -> Guid
 
 class _SolverCounters:
     """The QPs and steps of one run by solver path (the ``rti`` solver counts them over its
-    life): ``since()`` gives this run's, as ``meta`` entries."""
+    life), and the causes of its failed QPs: ``since()`` gives this run's, as ``meta``
+    entries (``qp_failures``: how many failed QPs had each cause, a cause being every QP
+    backend's status, as :attr:`~paper_repro.solvers.rti.RealTimeNMPC.last_failure`)."""
 
     def __init__(self, ctl):
         self.ctl = ctl
         self.before = {name: dict(getattr(ctl, name)) for name in ("qp_counts", "step_counts")
                        if hasattr(ctl, name)}
+        self.causes: dict[str, int] = {}
+
+    def failed(self, sol: NMPCSolution) -> None:
+        cause = getattr(self.ctl, "last_failure", None)
+        if sol.status == "qp_failed" and cause is not None:
+            key = ", ".join(f"{k} {v}" for k, v in cause.items())
+            self.causes[key] = self.causes.get(key, 0) + 1
 
     def since(self) -> dict:
-        return {name: {k: v - before.get(k, 0) for k, v in getattr(self.ctl, name).items()}
-                for name, before in self.before.items()}
+        counts = {name: {k: v - before.get(k, 0) for k, v in getattr(self.ctl, name).items()}
+                  for name, before in self.before.items()}
+        return {**counts, **({"qp_failures": self.causes} if self.causes else {})}
 
 
 def _vehicle(config: Config, controller, model: VehicleModel | None) -> VehicleModel:

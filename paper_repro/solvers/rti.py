@@ -94,6 +94,8 @@ class RealTimeNMPC:
     qp_counts : QPs solved so far by each path: ``riccati``, ``ipm`` (``"riccati-ipm"``
         only), ``hpipm`` (as the chosen solver or as the fallback) and ``failed``.
     step_counts : SQP steps taken so far: ``full`` (α = 1) and ``shortened`` (α < 1).
+    last_failure : why the last ``qp_failed`` solve failed (:attr:`QPChain.last_failure`,
+        and ``outside_state_box``: x0 was outside 𝒳, so the relaxed box was imposed).
     """
 
     def __init__(self, config: Config | None = None, model: VehicleModel | None = None,
@@ -132,6 +134,7 @@ class RealTimeNMPC:
                           else position)
         # Buffers of every solve, whose contents never outlive it: the iterate w (n_w,) (its
         # carried β stay 0) and the step's bounds lb − w, ub − w (n_w,).
+        self.last_failure: dict | None = None  # why the last failed solve failed
         nw = self.layout.nw
         self._w, self._step_lower, self._step_upper = np.zeros(nw), np.empty(nw), np.empty(nw)
         self._anchor = np.zeros(ocp.nx)  # the move of the previous plan, m (position only)
@@ -198,6 +201,8 @@ class RealTimeNMPC:
                   else self.qp.solve(h, q, j, gap, eq, lower, upper))
             if dw is None:
                 success, status = False, "qp_failed"
+                self.last_failure = {**self.qp.last_failure,
+                                     "outside_state_box": lbw is not self._lbw}
                 break
             alpha, merit = self.line_search(dw, h, q, gap, eq, float(cost[0]), values)
             dx, du, da = layout.gather(dw)
@@ -289,6 +294,9 @@ class QPChain:
         ``failed``.
     last_ipm_iterations : the interior point's iterations in the last :meth:`solve_bound`
         (0 when it did not run): what an instant's QP cost, for the benchmarks.
+    last_failure : why the last QP that no backend solved failed: each backend's status
+        (``None`` where it did not run) and whether the QP's data were finite; ``None``
+        until a QP fails.
     """
 
     def __init__(self, layout: QPLayout, qp_solver: str = "riccati-ipm"):
@@ -314,6 +322,7 @@ class QPChain:
         self._h_sp, self._a_sp, self._h_of, self._a_of = h_sp, a_sp, hs, asrc
         self.counts = {"riccati": 0, "hpipm": 0, "failed": 0}
         self.last_ipm_iterations = 0
+        self.last_failure: dict | None = None
         if self.budget is not None:
             self.counts["ipm"] = 0
 
@@ -336,7 +345,7 @@ class QPChain:
 
     def solve_bound(self, bound: BoundQP) -> np.ndarray | None:
         """:meth:`solve` on the current contents of a bound QP's arrays."""
-        dw = None
+        dw = res = ipm = None
         riccati = bound.riccati
         self.last_ipm_iterations = 0
         if riccati is not None:
@@ -360,10 +369,17 @@ class QPChain:
                 self._interior_next = ipm.success and changed > self.budget
             else:
                 self._interior_next = False
+        hpipm = None
         if dw is None:
             dw = self._solve_hpipm(*bound.arrays)
+            hpipm = str(self.hpipm.stats().get("return_status", "unknown"))
         if dw is None or not np.isfinite(dw).all():
             self.counts["failed"] += 1
+            self.last_failure = {
+                "active_set": None if res is None else res.status,
+                "interior_point": None if ipm is None else ipm.status,
+                "hpipm": hpipm, "finite_data": all(np.isfinite(a).all() for a in bound.arrays),
+                "finite_step": dw is not None}
             return None
         return dw
 
