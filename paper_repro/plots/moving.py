@@ -35,7 +35,8 @@ def prediction_velocities(result) -> np.ndarray:
     as the closed loop logged it (``SimulationResult.region_velocities``):
 
     * ``"static"`` (the paper): zeros, the regions are taken to stay where they are seen;
-    * ``"oracle"``: the regions' true velocities at t_k (:func:`~paper_repro.world.truth.scene_velocities`);
+    * ``"oracle"``: the regions' true velocities at t_k
+      (:func:`~paper_repro.world.truth.scene_velocities`);
     * ``"kalman"``: the estimates of the run's :class:`~paper_repro.world.tracking.RegionTracker`.
 
     Parameters
