@@ -270,48 +270,16 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
     if workers is not None and not (isinstance(workers, int) and workers >= 0):
         raise ValueError(f"workers must be an integer >= 0, got {workers!r}")
     start = time.perf_counter()
-    if preset is not None:
-        from paper_repro import presets as _presets
-
-        config = _presets.preset(preset, base=config)
-        if preset != _presets.DEFAULT:
-            sub = Path("presets") / preset
-            figures_dir = figures_dir if figures_dir is not None else (
-                paths.figures_dir(quick) / sub)
-            executed_dir = executed_dir if executed_dir is not None else (
-                paths.executed_dir(quick) / sub)
+    config, figures, executed = _folders(preset, config, quick, figures_dir, executed_dir)
     specs = run_specs(quick=quick, max_steps=max_steps, config=config)
     selected = _select_notebooks(notebooks)
     needed = {m for nb in selected for m in nb.runs}
-    figures = Path(figures_dir) if figures_dir is not None else paths.figures_dir(quick)
-    executed = Path(executed_dir) if executed_dir is not None else paths.executed_dir(quick)
     todo = [s for s in specs if s.config.distance.metric in needed]
     total = len(todo) + len(selected)
     log(f"reproduce: paper mission, {len(todo)} run(s) of at most {specs[0].max_steps} steps, "
         f"{len(selected)} notebook(s) -> {paths.in_repo(figures)}")
-
-    result_dirs, simulated, timings = {}, [], {}
-    flights = []
-    for i, spec in enumerate(todo, 1):
-        out = spec.directory(results_dir)
-        step = f"[{i}/{total}] simulate {spec.name}"
-        result_dirs[spec.config.distance.metric] = out
-        if not force and usable_or_set_aside(out, log):
-            log(f"{step}: cached in {paths.in_repo(out)}")
-        else:
-            log(f"{step}: flying up to {spec.max_steps} steps ...")
-            flights.append((step, spec))
-    # Not on a terminal (a log, CI): plain lines instead of a silent minute.
-    lines = "lines" if progress is None and not sys.stderr.isatty() else progress
-    # The missions are independent: one process each, up to one per core.
-    with _pool(len(flights), workers) as pool:
-        futures = [(step, spec, pool.submit(_fly, spec, results_dir, lines))
-                   for step, spec in flights]
-        for step, spec, future in futures:
-            out, seconds = future.result()
-            timings[spec.name] = seconds
-            simulated.append(spec.name)
-            log(f"{step}: done in {duration(seconds)} -> {paths.in_repo(out)}")
+    result_dirs, timings = _fly_missing(todo, total, force, results_dir, progress, workers, log)
+    simulated = list(timings)
 
     def run_notebook(i: int, nb: NotebookSpec) -> float:
         params = notebook_parameters(nb, result_dirs, figures, quick=quick)
@@ -340,7 +308,64 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
             timings[nb.name] = future.result()
             outputs += [figures / f for f in nb.outputs]
             ran.append(nb.name)
+    _note_partial_missions(result_dirs, log)
 
+    elapsed = time.perf_counter() - start
+    if notebooks is None and max_steps is None and not quick:
+        _stamp_figures(figures, preset, elapsed, timings)
+    log(f"done in {duration(elapsed)}: {len(outputs)} file(s) in {paths.in_repo(figures)}, "
+        f"executed notebooks in {paths.in_repo(executed)}")
+    return ReproduceReport(result_dirs, simulated, ran, figures, outputs, timings, elapsed)
+
+
+def _folders(preset: str | None, config: Config | None, quick: bool, figures_dir,
+             executed_dir) -> tuple[Config | None, Path, Path]:
+    """The configuration (``preset`` applied) and the folders of the figures and of the
+    executed notebooks: ``figures/presets/<name>/`` for a preset other than ``paper``."""
+    if preset is not None:
+        from paper_repro import presets as _presets
+
+        config = _presets.preset(preset, base=config)
+        if preset != _presets.DEFAULT:
+            sub = Path("presets") / preset
+            figures_dir = figures_dir if figures_dir is not None else (
+                paths.figures_dir(quick) / sub)
+            executed_dir = executed_dir if executed_dir is not None else (
+                paths.executed_dir(quick) / sub)
+    figures = Path(figures_dir) if figures_dir is not None else paths.figures_dir(quick)
+    executed = Path(executed_dir) if executed_dir is not None else paths.executed_dir(quick)
+    return config, figures, executed
+
+
+def _fly_missing(todo: list[RunSpec], total: int, force: bool, results_dir, progress,
+                 workers: int | None, log) -> tuple[dict, dict]:
+    """Each mission of ``todo`` from the cache, or flown (one process each, up to one per
+    core): the result folder of each metric, and the wall time of each flight flown."""
+    result_dirs, timings, flights = {}, {}, []
+    for i, spec in enumerate(todo, 1):
+        out = spec.directory(results_dir)
+        step = f"[{i}/{total}] simulate {spec.name}"
+        result_dirs[spec.config.distance.metric] = out
+        if not force and usable_or_set_aside(out, log):
+            log(f"{step}: cached in {paths.in_repo(out)}")
+        else:
+            log(f"{step}: flying up to {spec.max_steps} steps ...")
+            flights.append((step, spec))
+    # Not on a terminal (a log, CI): plain lines instead of a silent minute.
+    lines = "lines" if progress is None and not sys.stderr.isatty() else progress
+    with _pool(len(flights), workers) as pool:
+        futures = [(step, spec, pool.submit(_fly, spec, results_dir, lines))
+                   for step, spec in flights]
+        for step, spec, future in futures:
+            out, seconds = future.result()
+            timings[spec.name] = seconds
+            log(f"{step}: done in {duration(seconds)} -> {paths.in_repo(out)}")
+    return result_dirs, timings
+
+
+def _note_partial_missions(result_dirs: dict, log) -> None:
+    """Say which mission stopped before its last target (its figures show the partial
+    mission)."""
     for metric, directory in result_dirs.items():
         saved = read_arrays(directory, "reached", "t")
         reached, steps = saved["reached"], len(saved["t"])
@@ -349,21 +374,18 @@ def reproduce(quick: bool = False, max_steps: int | None = None, force: bool = F
                 f"{int(np.sum(reached >= 0))}/{len(reached)} targets reached; its figures "
                 "show the partial mission")
 
-    elapsed = time.perf_counter() - start
-    if notebooks is None and max_steps is None and not quick:
-        from paper_repro.evidence.golden import stamp
-        from paper_repro.sim.result import run_metadata
 
-        # What this machine measured, apart from the figures (expected to change).
-        text = json.dumps({"wall_time_s": elapsed, "stages_s": timings,
-                           "meta": run_metadata()}, indent=1, default=str) + "\n"
-        (figures / "timings.json").write_text(text)
-        # Last, once every figure is in place: this set is what this code makes.
-        stamp(figures, "python -m paper_repro reproduce" + (
-            f" --preset {preset}" if preset not in (None, "paper") else ""))
-    log(f"done in {duration(elapsed)}: {len(outputs)} file(s) in {paths.in_repo(figures)}, "
-        f"executed notebooks in {paths.in_repo(executed)}")
-    return ReproduceReport(result_dirs, simulated, ran, figures, outputs, timings, elapsed)
+def _stamp_figures(figures: Path, preset: str | None, elapsed: float, timings: dict) -> None:
+    """Write what this machine measured (``timings.json``, expected to change), then, last,
+    once every figure is in place, the stamp: this set is what this code makes."""
+    from paper_repro.evidence.golden import stamp
+    from paper_repro.sim.result import run_metadata
+
+    text = json.dumps({"wall_time_s": elapsed, "stages_s": timings,
+                       "meta": run_metadata()}, indent=1, default=str) + "\n"
+    paths.atomic_text(figures / "timings.json", text)
+    stamp(figures, "python -m paper_repro reproduce" + (
+        f" --preset {preset}" if preset not in (None, "paper") else ""))
 
 
 def _fly(spec: RunSpec, results_dir, progress) -> tuple[Path, float]:

@@ -198,43 +198,17 @@ def tune(settings: TuningSettings | None = None, *, workers: int | None = None,
     start = time.perf_counter()
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    directions = ["minimize"] * len(objectives)
     existing = _load_existing(study_name, storage, log)
     with tuning_client(workers, scheduler, client, log) as cluster_client:
-        if existing is None:
-            if seeds is not None:
-                train, must = tuple(seeds), tuple(seeds)
-            else:
-                train, must = training_scenes(
-                    spec["scenes"], spec["hard"], max_steps=max_steps, base=base,
-                    client=cluster_client, runs_dir=runs_dir, require_completion=not quick,
-                    log=log)
-            check_disjoint(train)
-        else:
-            train = tuple(existing.user_attrs.get("seeds", ()))
-            must = tuple(existing.user_attrs.get("must_complete", train))
+        train, must = _scenes_of(existing, seeds, spec, max_steps, base, cluster_client,
+                                 runs_dir, quick, log)
         stored = {"objectives": list(objectives), "seeds": list(train),
                   "must_complete": list(must),
                   "space": {n: [r.low, r.high, r.step] for n, r in space.items()},
                   "max_steps": max_steps, "require_completion": not quick,
                   "base": json.loads(json.dumps(base.key_dict(), default=str))}
-        n_done = 0 if existing is None else len(finished_trials(existing))
-        study = optuna.create_study(
-            study_name=study_name, storage=storage, directions=directions,
-            load_if_exists=True, sampler=_sampler(sampler, seed + n_done, len(objectives)))
-        if existing is None:
-            for k, v in stored.items():
-                study.set_user_attr(k, v)
-            # Trial 0 is the printed set-up: where it lies against the front is the question.
-            study.enqueue_trial(printed_params(base, space))
-        else:
-            _check_stored(study, stored)
-            study.set_user_attr("base", stored["base"])  # the same base, in today's layout
-        for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
-            study.tell(t.number, state=optuna.trial.TrialState.FAIL)
-            study.enqueue_trial(t.params)
-            log(f"tune: trial {t.number} was left running by an earlier driver: failed, its "
-                "parameters queued again")
+        study = _open_study(optuna, existing, study_name, storage, sampler, seed, stored,
+                            base, space, log)
         write_json(out / "tuning.json", {
             "study_name": study_name, "storage": _shown_storage(storage, out),
             "sampler": sampler, "seed": seed, **stored,
@@ -246,29 +220,8 @@ def tune(settings: TuningSettings | None = None, *, workers: int | None = None,
             f"trials, {max(remaining, 0)} to run on {n_jobs} worker(s); training scenes "
             f"{list(train)}")
         flown = [0]
-
-        def objective(trial):
-            params = suggest(trial, space)
-            table = run_study(
-                trial_study(params, train, max_steps, base, f"trial-{trial.number:04d}"),
-                out=trials_dir / f"trial-{trial.number:04d}", client=cluster_client,
-                workers=0 if cluster_client is None else None, runs_dir=runs_dir,
-                progress=False, log=lambda line: None).table
-            values, constraints = evaluate_table(table, objectives, not quick,
-                                                 max_steps * base.nmpc.ts, must)
-            trial.set_user_attr("constraints", list(constraints))
-            if hasattr(trial, "set_constraint"):  # Optuna >= 5: constraints by name
-                for name, c in zip(CONSTRAINTS, constraints):
-                    trial.set_constraint(name, c)
-            trial.set_user_attr("scenes", _scene_records(table))
-            trial.set_user_attr("flown", int(table["simulated"].sum()))
-            flown[0] += 1
-            log(f"tune: trial {trial.number}: {_fmt_params(params)} -> "
-                + ", ".join(f"{o} {v:.4g}" for o, v in zip(objectives, values))
-                + ("" if max(constraints) <= 0 else
-                   f" (infeasible: {dict(zip(CONSTRAINTS, constraints))})"))
-            return values
-
+        objective = _objective(space, train, must, max_steps, base, objectives, quick,
+                               trials_dir, runs_dir, cluster_client, flown, log)
         if remaining > 0:
             _ask_and_tell(study, objective, remaining, n_jobs, callbacks)
     wall = time.perf_counter() - start
@@ -282,6 +235,78 @@ def tune(settings: TuningSettings | None = None, *, workers: int | None = None,
         write_json(out / "timings.json", {"flown_trials_last_call": flown[0],
                                            "wall_time_s_last_call": wall})
     return TuningResult(study, storage, train, out, flown[0], wall)
+
+
+def _scenes_of(existing, seeds, spec: dict, max_steps: int, base: Config, cluster_client,
+               runs_dir: Path, quick: bool, log) -> tuple[tuple, tuple]:
+    """The training scenes and those every trial must complete: a resumed study's own, the
+    ``seeds`` given, or chosen by :func:`training_scenes`."""
+    if existing is not None:
+        train = tuple(existing.user_attrs.get("seeds", ()))
+        return train, tuple(existing.user_attrs.get("must_complete", train))
+    if seeds is not None:
+        train, must = tuple(seeds), tuple(seeds)
+    else:
+        train, must = training_scenes(
+            spec["scenes"], spec["hard"], max_steps=max_steps, base=base,
+            client=cluster_client, runs_dir=runs_dir, require_completion=not quick, log=log)
+    check_disjoint(train)
+    return train, must
+
+
+def _open_study(optuna, existing, study_name: str, storage: str, sampler: str, seed: int,
+                stored: dict, base: Config, space: dict, log):
+    """The Optuna study, created (with the printed set-up as trial 0) or resumed (its stored
+    settings checked); a trial an earlier driver left running is failed and queued again."""
+    n_done = 0 if existing is None else len(finished_trials(existing))
+    objectives = stored["objectives"]
+    study = optuna.create_study(
+        study_name=study_name, storage=storage, directions=["minimize"] * len(objectives),
+        load_if_exists=True, sampler=_sampler(sampler, seed + n_done, len(objectives)))
+    if existing is None:
+        for k, v in stored.items():
+            study.set_user_attr(k, v)
+        # Trial 0 is the printed set-up: where it lies against the front is the question.
+        study.enqueue_trial(printed_params(base, space))
+    else:
+        _check_stored(study, stored)
+        study.set_user_attr("base", stored["base"])  # the same base, in today's layout
+    for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
+        study.tell(t.number, state=optuna.trial.TrialState.FAIL)
+        study.enqueue_trial(t.params)
+        log(f"tune: trial {t.number} was left running by an earlier driver: failed, its "
+            "parameters queued again")
+    return study
+
+
+def _objective(space: dict, train: tuple, must: tuple, max_steps: int, base: Config,
+               objectives, quick: bool, trials_dir: Path, runs_dir: Path, cluster_client,
+               flown: list, log):
+    """The trial's objective: fly the training scenes with the suggested parameters (one
+    study each, through the run cache), and score the table; ``flown[0]`` counts the
+    trials."""
+    def objective(trial):
+        params = suggest(trial, space)
+        table = run_study(
+            trial_study(params, train, max_steps, base, f"trial-{trial.number:04d}"),
+            out=trials_dir / f"trial-{trial.number:04d}", client=cluster_client,
+            workers=0 if cluster_client is None else None, runs_dir=runs_dir,
+            progress=False, log=lambda line: None).table
+        values, constraints = evaluate_table(table, objectives, not quick,
+                                             max_steps * base.nmpc.ts, must)
+        trial.set_user_attr("constraints", list(constraints))
+        if hasattr(trial, "set_constraint"):  # Optuna >= 5: constraints by name
+            for name, c in zip(CONSTRAINTS, constraints):
+                trial.set_constraint(name, c)
+        trial.set_user_attr("scenes", _scene_records(table))
+        trial.set_user_attr("flown", int(table["simulated"].sum()))
+        flown[0] += 1
+        log(f"tune: trial {trial.number}: {_fmt_params(params)} -> "
+            + ", ".join(f"{o} {v:.4g}" for o, v in zip(objectives, values))
+            + ("" if max(constraints) <= 0 else
+               f" (infeasible: {dict(zip(CONSTRAINTS, constraints))})"))
+        return values
+    return objective
 
 
 def _ask_and_tell(study, objective, n_trials: int, n_jobs: int, callbacks) -> None:
