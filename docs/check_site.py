@@ -3,8 +3,8 @@
     python -m paper_repro book && python docs/check_site.py [--site build/book/html]
 
 Installs what it needs when it is missing (Debian's ``chromium``, with apt-get; the
-``playwright`` Python package, which drives it), serves the site on localhost, and loads the
-index, the reproduction page and every notebook page. On each page it asserts that every image
+``playwright`` Python package, which drives it), serves the site on localhost, and loads
+every page of ``docs/`` and every notebook page. On each page it asserts that every image
 has loaded (``complete`` with a non-zero natural width), that the browser logged no console
 error, no failed request and no exception, that MathJax typeset the formulas of a page that
 has some, and that every internal link resolves (the file
@@ -27,8 +27,14 @@ from pathlib import Path
 from urllib.parse import urldefrag, urljoin, urlparse
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGES = ("index.html", "reproduction.html")
-"""The pages checked besides every notebook page (``notebooks/*.html``)."""
+DOCS = ROOT / "docs"
+
+
+def pages_of_docs() -> list[str]:
+    """The page the book makes of every Markdown page of ``docs/`` (``method.html``,
+    ``theory/distance.html``, …), the index first."""
+    return sorted((p.relative_to(DOCS).with_suffix(".html").as_posix()
+                   for p in DOCS.rglob("*.md")), key=lambda p: (p != "index.html", p))
 CHROMIUM = "/usr/bin/chromium"
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync"]
@@ -112,13 +118,14 @@ def check_page(page, context, base: str, path: str, shots: Path) -> list[str]:
 
 
 def check_site(site: Path, shots: Path, pages=None) -> list[str]:
-    """Load ``pages`` of the built ``site`` (default :data:`PAGES` and every notebook page) in
+    """Load ``pages`` of the built ``site`` (default every page of ``docs/`` and every notebook
+    page) in
     headless Chromium; returns what is wrong, one line per problem, and leaves a screenshot of
     each page in ``shots`` (emptied first). Chromium and Playwright must be installed."""
     from playwright.sync_api import sync_playwright
 
     if pages is None:
-        pages = [*PAGES, *(f"notebooks/{p.name}"
+        pages = [*pages_of_docs(), *(f"notebooks/{p.name}"
                            for p in sorted((site / "notebooks").glob("*.html")))]
     if shots.exists():
         shutil.rmtree(shots)
