@@ -190,6 +190,37 @@ def moving_heldout() -> str:
         f"\n\nThe runs that collide: {where}." if where else "\n\nNo run collides.")
 
 
+def qp_failures() -> str:
+    """``figures/studies/qp_failures/``: the moving studies' runs with the most failed solves,
+    flown again with each failed QP's cause recorded (``runs.csv``, ``causes.csv``)."""
+    folder = paths.figures_dir() / "studies" / "qp_failures"
+    runs = pd.read_csv(folder / "runs.csv")
+    causes = pd.read_csv(folder / "causes.csv")
+    rows = [[r.study, r.name.replace("passage-", "").replace("-eta0.3-sigma0.8", ""),
+             f"{r.steps:,}", f"{r.committed_failed_solves:,}", f"{r.failed_solves:,}",
+             f"{r.longest_streak:,}", f"{r.failed_in_view:,}", r.outcome,
+             "no" if r.left_workspace_step < 0 else f"step {r.left_workspace_step:,}",
+             f"{r.min_altitude_m:,.3f}"] for r in runs.itertuples()]
+    out = fmt.markdown_table(["study", "run", "steps", "failed (study)", "failed (again)",
+                              "longest streak", "failed, points in view", "outcome",
+                              "left the workspace", "lowest altitude, m"], rows)
+    by = ["active_set", "interior_point", "hpipm", "outside_state_box"]
+    total = causes.groupby(by, dropna=False)["count"].sum().sort_values(ascending=False)
+    out += "\n\n" + fmt.markdown_table(
+        ["active set", "interior point", "HPIPM", "state outside 𝒳", "failed QPs"],
+        [[*("skipped" if pd.isna(v) else str(v) for v in key), f"{n:,}"]
+         for key, n in total.items()])
+    finite = bool(causes["finite_data"].all())
+    out += (f"\n\nOf {int(causes['count'].sum()):,} failed QPs, "
+            f"{'every one' if finite else 'not every one'} had finite data.")
+    moved = runs[runs.failed_solves != runs.committed_failed_solves]
+    if len(moved):
+        out += (f" {len(moved)} of {len(runs)} runs failed a different number of times when "
+                "flown again: a moving crossing can take another path from a last-bit "
+                "difference of the arithmetic, which the golden flights' tolerance allows.")
+    return out
+
+
 def moving_speeds() -> str:
     """``figures/studies/moving_speeds/``: how fast the UAV moved sideways on the crossings
     (``speeds.csv``) and how the collisions came about (``collisions.csv``)."""

@@ -92,6 +92,8 @@ SETS = (
     EvidenceSet("studies/moving_obstacles", "python -m paper_repro study moving_obstacles", _STUDY),
     EvidenceSet("studies/moving_obstacles_definition",
                 "python benchmarks/moving_definition_form.py", "--workers 1"),
+    EvidenceSet("studies/qp_failures", "python benchmarks/qp_failures.py --save --min-failed 10",
+                "--workers 1", after=("studies/moving_obstacles", "studies/moving_heldout")),
     EvidenceSet("studies/avoidability", "python benchmarks/avoidability.py --save",
                 after=("studies/moving_obstacles", "studies/moving_heldout")),
     EvidenceSet("studies/moving_levers",

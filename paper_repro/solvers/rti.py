@@ -378,7 +378,10 @@ class QPChain:
             self.last_failure = {
                 "active_set": None if res is None else res.status,
                 "interior_point": None if ipm is None else ipm.status,
-                "hpipm": hpipm, "finite_data": all(np.isfinite(a).all() for a in bound.arrays),
+                "hpipm": hpipm,
+                # the linearisation's numbers (a free variable's bounds are ±inf by design)
+                "finite_data": (all(np.isfinite(a).all() for a in bound.arrays[:5])
+                                and not any(np.isnan(a).any() for a in bound.arrays[5:])),
                 "finite_step": dw is not None}
             return None
         return dw
