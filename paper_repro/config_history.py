@@ -25,6 +25,7 @@ ADDED = {
     ("guide", "set_point_filter"): 0.0,  # after ("guide", None): the part's defaults hold it
     ("simulation", "approach_time"): 150.0,
     ("tracker", None): None,
+    ("solver", "relaxed_qp"): False,
 }
 """Settings added after the committed evidence was flown, (part, name) → the value that flies
 as before (the golden flights prove it). A run whose setting has that value is keyed as it was

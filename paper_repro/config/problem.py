@@ -330,16 +330,23 @@ class SolverParams:
         ``"riccati"`` (the active set without a budget, HPIPM as its fallback, whose 5-15 ms
         calls break T_s where the set changes by dozens of bounds at once: a chattering
         Euclidean passage, a region crossing the horizon) or ``"hpipm"`` (HPIPM for every QP).
+    relaxed_qp : ``True``: a QP of the ``rti`` solver that no QP method solves (an infeasible
+        linearisation: a state that cannot be brought back inside 𝒳, a plan that cannot end
+        at rest within the horizon) is solved with soft state bounds and terminal rows
+        (:mod:`~paper_repro.solvers.relaxed_qp`), and its step is taken. ``False``
+        (default): the solve fails and the closed loop applies the previous plan.
     """
 
     nlp_solver: str = "rti"
     sqp_iterations: int = 1
     line_search: bool = False
     qp_solver: str = "riccati-ipm"
+    relaxed_qp: bool = False
 
     def __post_init__(self):
         require_choice("nlp_solver", self.nlp_solver, ("rti", "reference"))
         require_choice("qp_solver", self.qp_solver, QP_SOLVERS)
-        if not isinstance(self.line_search, bool):
-            raise ValueError(f"line_search must be True or False, got {self.line_search!r}")
+        for name in ("line_search", "relaxed_qp"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
         require_int("sqp_iterations", self.sqp_iterations, 1)

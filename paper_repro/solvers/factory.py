@@ -18,7 +18,8 @@ from paper_repro.vehicles.base import VehicleModel
 def make_controller(config: Config | None = None, model: VehicleModel | None = None,
                     **options) -> Controller:
     """The controller named by ``config.solver.nlp_solver``: ``"rti"`` (:class:`RealTimeNMPC`,
-    with ``solver.sqp_iterations``, ``solver.line_search`` and ``solver.qp_solver``) or
+    with ``solver.sqp_iterations``, ``solver.line_search``, ``solver.qp_solver`` and
+    ``solver.relaxed_qp``) or
     ``"reference"`` (:class:`TrackingNMPC`).
 
     ``model`` : the vehicle (the quadrotor by default). ``options`` go to the controller's
@@ -31,4 +32,5 @@ def make_controller(config: Config | None = None, model: VehicleModel | None = N
     options.setdefault("max_iter", s.sqp_iterations)
     options.setdefault("qp_solver", s.qp_solver)
     options.setdefault("line_search", s.line_search)
+    options.setdefault("relaxed_qp", s.relaxed_qp)
     return RealTimeNMPC(config, model, **options)

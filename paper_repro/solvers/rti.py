@@ -49,6 +49,7 @@ from paper_repro.config import QP_SOLVERS, Config
 from paper_repro.problem.ocp import OCP, NMPCSolution
 from paper_repro.problem.scan import check_visible
 from paper_repro.solvers.linearisation import LinearisationLadder, QPLayout
+from paper_repro.solvers.relaxed_qp import RelaxedQP
 from paper_repro.solvers.riccati_qp import BoundStageQP, StageQP
 from paper_repro.validation import as_vector
 from paper_repro.vehicles.base import VehicleModel
@@ -87,12 +88,18 @@ class RealTimeNMPC:
         controller with the Euclidean metric. ``False``: every full step (the textbook
         real-time iteration, whose inputs fall into a period-2 oscillation between their
         bounds when a region moves at the vehicle).
+    relaxed_qp : ``True``: a QP that no backend solves (an infeasible linearisation) is
+        solved again with soft state bounds and terminal rows
+        (:class:`~paper_repro.solvers.relaxed_qp.RelaxedQP`, an exact ℓ1 penalty); its step
+        is taken and the solve's status is ``"relaxed"``. ``False`` (default): the solve
+        fails (``"qp_failed"``).
 
     Attributes
     ----------
     ocp : the problem.  layout : its :class:`QPLayout`.
     qp_counts : QPs solved so far by each path: ``riccati``, ``ipm`` (``"riccati-ipm"``
-        only), ``hpipm`` (as the chosen solver or as the fallback) and ``failed``.
+        only), ``hpipm`` (as the chosen solver or as the fallback), ``relaxed``
+        (``relaxed_qp`` only) and ``failed``.
     step_counts : SQP steps taken so far: ``full`` (α = 1) and ``shortened`` (α < 1).
     last_failure : why the last ``qp_failed`` solve failed (:attr:`QPChain.last_failure`,
         and ``outside_state_box``: x0 was outside 𝒳, so the relaxed box was imposed).
@@ -101,7 +108,7 @@ class RealTimeNMPC:
     def __init__(self, config: Config | None = None, model: VehicleModel | None = None,
                  max_iter: int = 1, step_tol: float = 1e-6, qp_solver: str = "riccati-ipm",
                  compile: bool = True, capacities: tuple[int, ...] = CAPACITIES,
-                 line_search: bool | None = None):
+                 line_search: bool | None = None, relaxed_qp: bool = False):
         if not (isinstance(max_iter, int) and max_iter >= 1):
             raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
         if not step_tol > 0:
@@ -113,6 +120,8 @@ class RealTimeNMPC:
                              f"{line_search!r}")
         if qp_solver not in QP_SOLVERS:
             raise ValueError(f"qp_solver must be one of {QP_SOLVERS}, got {qp_solver!r}")
+        if not isinstance(relaxed_qp, bool):
+            raise ValueError(f"relaxed_qp must be True or False, got {relaxed_qp!r}")
         self.ocp = ocp = OCP(config, model)
         self.config, self.horizon = ocp.config, ocp.horizon
         if line_search is None:
@@ -121,7 +130,9 @@ class RealTimeNMPC:
         self.layout = QPLayout.of(ocp)
         self.ladder = LinearisationLadder(ocp, capacities, compile, values=line_search)
         self.qp_solver = qp_solver if self.ladder.native else "hpipm"
-        self.qp = QPChain(self.layout, self.qp_solver)
+        bounded = np.isfinite(ocp.state_bounds[0]) | np.isfinite(ocp.state_bounds[1])
+        self.qp = QPChain(self.layout, self.qp_solver,
+                          RelaxedQP(self.layout, bounded) if relaxed_qp else None)
         self.line_search = MeritLineSearch(self.layout, max_trials=4 if line_search else 0)
         self._lbw, self._ubw = self.layout.bounds(ocp)
         position = np.array(ocp.model.position, dtype=np.intp)
@@ -189,7 +200,7 @@ class RealTimeNMPC:
             return self.ladder.evaluate(rung.values, x0, X[1:] + alpha * dx, U + alpha * du,
                                         a + alpha * da, params)
 
-        success, status, it, merit = False, "iterated", 0, np.nan
+        success, status, it, merit, relaxed = False, "iterated", 0, np.nan, False
         for it in range(1, self.max_iter + 1):  # noqa: B007 - `it` is reported below
             w = layout.scatter(X[1:], U, a, out=self._w)
             h, q, j, gap, eq, cost = self.ladder.evaluate(rung.linearisation, x0, X[1:], U, a,
@@ -204,6 +215,7 @@ class RealTimeNMPC:
                 self.last_failure = {**self.qp.last_failure,
                                      "outside_state_box": lbw is not self._lbw}
                 break
+            relaxed = relaxed or self.qp.last_relaxed
             alpha, merit = self.line_search(dw, h, q, gap, eq, float(cost[0]), values)
             dx, du, da = layout.gather(dw)
             if alpha != 1.0:  # (1.0·Δ is Δ, bit for bit: the full step skips the products)
@@ -219,6 +231,8 @@ class RealTimeNMPC:
                 break
         else:
             success, status = True, "iterated"  # real-time iteration: the last iterate is used
+        if relaxed and success:
+            status = "relaxed"
         elapsed = time.perf_counter() - start - waited
         finite = np.isfinite(X).all() and np.isfinite(U).all() and np.isfinite(a).all()
         x_a, u_a = ocp.equilibrium_of(a)
@@ -287,11 +301,14 @@ class QPChain:
     qp_solver : ``"riccati"`` (Riccati first, HPIPM when it fails), ``"riccati-ipm"``
         (Riccati within :data:`IPM_ACTIVE_SET_BUDGET` factorisations, then the interior
         point, then HPIPM) or ``"hpipm"`` (HPIPM only).
+    relaxed : the last resort, a :class:`~paper_repro.solvers.relaxed_qp.RelaxedQP` of the
+        same layout, or ``None`` (a QP no backend solves fails).
 
     Attributes
     ----------
-    counts : QPs solved by ``riccati``, by ``ipm``, by ``hpipm`` (chosen or as fallback), and
-        ``failed``.
+    counts : QPs solved by ``riccati``, by ``ipm``, by ``hpipm`` (chosen or as fallback), by
+        ``relaxed`` (with a last resort), and ``failed``.
+    last_relaxed : whether the last QP's step came from the relaxed QP.
     last_ipm_iterations : the interior point's iterations in the last :meth:`solve_bound`
         (0 when it did not run): what an instant's QP cost, for the benchmarks.
     last_failure : why the last QP that no backend solved failed: each backend's status
@@ -299,8 +316,11 @@ class QPChain:
         until a QP fails.
     """
 
-    def __init__(self, layout: QPLayout, qp_solver: str = "riccati-ipm"):
+    def __init__(self, layout: QPLayout, qp_solver: str = "riccati-ipm",
+                 relaxed: RelaxedQP | None = None):
         self.layout = lay = layout
+        self.relaxed = relaxed
+        self.last_relaxed = False
         n = lay.horizon
         self.riccati = (StageQP(lay.nz, [lay.nu] * n, lay.nc)
                         if qp_solver != "hpipm" else None)
@@ -325,6 +345,8 @@ class QPChain:
         self.last_failure: dict | None = None
         if self.budget is not None:
             self.counts["ipm"] = 0
+        if relaxed is not None:
+            self.counts["relaxed"] = 0
 
     def solve(self, h, q, j, gap, eq, lb, ub) -> np.ndarray | None:
         """The step Δw of the QP min ½ΔwᵀHΔw + qᵀΔw s.t. the linearised gaps and terminal rows,
@@ -373,12 +395,20 @@ class QPChain:
         if dw is None:
             dw = self._solve_hpipm(*bound.arrays)
             hpipm = str(self.hpipm.stats().get("return_status", "unknown"))
+        self.last_relaxed = False
         if dw is None or not np.isfinite(dw).all():
+            if self.relaxed is not None:
+                dw = self.relaxed.solve(*bound.arrays)
+                if dw is not None:
+                    self.counts["relaxed"] += 1
+                    self.last_relaxed = True
+                    return dw
             self.counts["failed"] += 1
             self.last_failure = {
                 "active_set": None if res is None else res.status,
                 "interior_point": None if ipm is None else ipm.status,
                 "hpipm": hpipm,
+                **({} if self.relaxed is None else {"relaxed": self.relaxed.last_status}),
                 # the linearisation's numbers (a free variable's bounds are ±inf by design)
                 "finite_data": (all(np.isfinite(a).all() for a in bound.arrays[:5])
                                 and not any(np.isnan(a).any() for a in bound.arrays[5:])),
