@@ -40,7 +40,7 @@ TURBULENCE_LEVELS = {"light": 15 * KNOT, "moderate": 30 * KNOT, "severe": 45 * K
 LOW_ALTITUDE_CEILING = 1000 * FOOT
 """304.8 m: the low-altitude form of MIL-F-8785C holds below 1000 ft."""
 
-_CHUNK = 4096  # samples of turbulence generated at a time (the sequence does not depend on it)
+_CHUNK = 256  # fewest samples generated at a time (the sequence does not depend on it)
 
 
 class Wind:
@@ -143,8 +143,10 @@ class DrydenTurbulence:
     def samples(self, n: int) -> np.ndarray:
         """The first ``n`` samples, at t = 0, T_s, ..., (n−1)·T_s: (n, 3) array, m/s, world
         frame (a view: do not write to it)."""
-        while len(self._samples) < n:
-            self._samples = np.vstack([self._samples, self._generate(_CHUNK)])
+        have = len(self._samples)
+        if have < n:  # the record at least doubles: generating a long flight costs O(n)
+            more = self._generate(max(n - have, have, _CHUNK))
+            self._samples = np.vstack([self._samples, more])
         return self._samples[:n]
 
     def spectrum(self, frequency) -> np.ndarray:
