@@ -16,8 +16,8 @@ How RotorPy 3.0.0 is used, as read from its source:
   ω̇_i = (ω_cmd,i − ω_i)/τ_m. ``tau_m = 0`` divides by zero there. So without a lag this plant
   sets the rotor speeds to the commanded ones before each step and gives RotorPy
   τ_m = ∞: the speeds are then constant over the step, and each thrust is held exactly.
-* The lag acts on rotor speed; thrust is k_η·ω². The thrust lag is thus first-order with
-  time constant τ_m only for small changes of thrust (τ_m/2 for its relative change).
+* The lag acts on rotor speed; thrust is k_η·ω². The thrust follows a first-order lag of
+  time constant τ_m only for small changes of thrust (to 1 % for a 10 % step).
 * It integrates with ``solve_ivp``; its default is RK45 at rtol 1e-3. This plant passes
   RK45 at our plant's tolerances (rtol 1e-8, atol 1e-10).
 * Gravity is fixed at 9.81 m/s² in its constructor. This plant overwrites the instance's
