@@ -1,6 +1,6 @@
 """Why the QPs of the moving studies fail: each failed solve's cause, measured.
 
-    python benchmarks/qp_failures.py [--min-failed 10] [--workers 2] [--save]
+    python benchmarks/qp_failures.py [--min-failed 10] [--workers 2] [--save] [--relaxed-qp]
 
 Flies again the runs of the committed moving studies (``moving_obstacles``,
 ``moving_heldout``) with more than ``--min-failed`` failed solves, and records for every
@@ -20,6 +20,10 @@ inside the barrier's margin (clearance below √(2 d_min), the ½d² reading of 
 longest streak of failures in a row; and whether the vehicle left the workspace (below its
 floor, z < 0, say), the first step it did and its lowest altitude. ``--save`` writes
 ``figures/studies/qp_failures/`` (``runs.csv``, ``causes.csv``), stamped.
+
+``--relaxed-qp`` flies the same runs with ``SolverParams(relaxed_qp=True)``
+(:mod:`~paper_repro.solvers.relaxed_qp`) and prints what changed: the failed and the relaxed
+solves, the outcome, the lowest altitude and the clearance.
 """
 
 from __future__ import annotations
@@ -70,6 +74,7 @@ def explain(spec) -> tuple[dict, list[dict]]:
                               (r.positions > WORKSPACE_UPPER)).any(axis=1))
     row = {"name": spec.name, "steps": r.steps, "outcome": r.outcome,
            "failed_solves": int(np.sum(~r.success)), "qp_failed": int(failed.sum()),
+           "relaxed_solves": int(r.meta.get("qp_counts", {}).get("relaxed", 0)),
            "failed_in_view": int(np.sum(failed & (r.visible_points > 0))),
            "failed_inside_margin": int(np.sum(failed & (r.clearance < margin))),
            "longest_streak": longest_streak(failed),
@@ -94,12 +99,19 @@ def main() -> None:
     parser.add_argument("--min-failed", type=int, default=10)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--save", action="store_true")
+    parser.add_argument("--relaxed-qp", action="store_true")
     args = parser.parse_args()
+    if args.save and args.relaxed_qp:
+        parser.error("--save writes the committed flights' causes: it takes no --relaxed-qp")
     committed = pd.concat([pd.read_csv(paths.figures_dir() / "studies" / s / "table.csv")
                            .assign(study=s) for s in STUDIES])
     chosen = committed[committed["failed_solves"] > args.min_failed]
     specs = specs_by_name()
     todo = [specs[n] for n in chosen["name"]]
+    if args.relaxed_qp:
+        todo = [dataclasses.replace(s, config=dataclasses.replace(
+            s.config, solver=dataclasses.replace(s.config.solver, relaxed_qp=True)))
+            for s in todo]
     with ProcessPoolExecutor(args.workers) as pool:
         done = list(pool.map(explain, todo))
     runs = pd.DataFrame([row for row, _ in done])
@@ -110,7 +122,7 @@ def main() -> None:
     print(runs.to_string(index=False))
     by = [c for c in causes.columns if c not in ("name", "count")]
     print(causes.groupby(by, dropna=False)["count"].sum().sort_values(ascending=False)
-          .to_string())
+          .to_string() if len(causes) else "no failed QP")
     if args.save:
         out = paths.figures_dir() / "studies" / "qp_failures"
         out.mkdir(parents=True, exist_ok=True)

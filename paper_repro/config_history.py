@@ -26,6 +26,7 @@ ADDED = {
     ("simulation", "approach_time"): 150.0,
     ("tracker", None): None,
     ("solver", "relaxed_qp"): False,
+    ("simulation", "workspace_exit"): None,
 }
 """Settings added after the committed evidence was flown, (part, name) → the value that flies
 as before (the golden flights prove it). A run whose setting has that value is keyed as it was

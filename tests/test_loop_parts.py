@@ -62,6 +62,32 @@ def test_persistent_faults_end_the_flight_and_a_usable_step_resets_them():
     assert stop.after_step(1, x, y, y) and stop.outcome == "fault"
 
 
+@pytest.mark.parametrize("position, leaves", [
+    ((0.0, 0.0, -0.05), False), ((0.0, 0.0, -0.11), True), ((25.05, 0.0, 1.0), False),
+    ((0.0, -25.2, 1.0), True), ((0.0, 0.0, 25.2), True)])
+def test_a_vehicle_beyond_the_workspace_by_more_than_workspace_exit_has_left_it(position,
+                                                                                 leaves):
+    """The quadrotor's position box is x, y in [−25, 25] m and z in [0, 25] m."""
+    y = np.array(position)
+    stop = _stop(workspace_exit=0.1)
+    assert stop.after_step(0, _state(position, (1.0, 0.0, 0.0)), y, y) is leaves
+    assert stop.outcome == ("left_workspace" if leaves else "step_limit")
+    off = _stop()  # the default: no such rule, the flight goes on
+    assert not off.after_step(0, _state(position, (1.0, 0.0, 0.0)), y, y)
+
+
+@pytest.mark.parametrize("value", [-0.1, float("inf"), float("nan"), "1", True])
+def test_a_bad_workspace_exit_is_refused_by_name(value):
+    with pytest.raises(ValueError, match="workspace_exit"):
+        SimulationParams(workspace_exit=value)
+
+
+def test_workspace_exit_at_its_default_keeps_the_run_key():
+    on = Config(simulation=SimulationParams(workspace_exit=0.0))
+    assert "workspace_exit" not in Config().key_dict()["simulation"]
+    assert on.key_dict()["simulation"]["workspace_exit"] == 0.0
+
+
 def test_the_tracker_is_tuned_from_the_configuration_and_keyed_only_off_its_defaults():
     base = Config(nmpc=dataclasses.replace(Config().nmpc, prediction="kalman"))
     tuned = dataclasses.replace(base, tracker=TrackerParams(accel_noise=1.5))

@@ -45,6 +45,11 @@ class SimulationParams:
         (shifted, as after a failed solve). After more than ``fault_steps`` faults in a row
         the run ends with the outcome ``"fault"``; the previous plan ends at rest at its
         artificial equilibrium, so holding it for a second is safe.
+    workspace_exit : m, or ``None`` (default: no such rule). The run ends with the outcome
+        ``"left_workspace"`` when the vehicle's position is farther than this outside the
+        workspace, the box of its position states (for the quadrotor the walls, the ground
+        and the ceiling). A vehicle below the ground has crashed; without the rule the
+        simulation flies on through it.
     """
 
     scenario: str = "paper"
@@ -57,9 +62,14 @@ class SimulationParams:
     stall_distance: float = 2.0
     fault_steps: int = 100
     approach_time: float = 150.0
+    workspace_exit: float | None = None
 
     def __post_init__(self):
         require_choice("kind", self.kind, ("mission", "passage"))
+        if self.workspace_exit is not None and not (
+                is_number(self.workspace_exit) and 0 <= self.workspace_exit < math.inf):
+            raise ValueError(f"workspace_exit must be None or a finite number of metres >= 0, "
+                             f"got {self.workspace_exit!r}")
         require_positive("tolerance", self.tolerance)
         for name in ("stall_speed", "stall_time", "stall_distance"):
             require_positive(name, getattr(self, name))

@@ -5,7 +5,8 @@
 ``result``         :class:`SimulationResult` (saves itself, becomes a DataFrame)
 ``perception``     what the controller is given: scan, faults, predictor, local map
 ``plant``          what the loop flies (:class:`Plant`); the quadrotor's, RK45 in C
-``termination``    when a flight ends: targets, finish line, stall, faults
+``rotorpy_plant``  RotorPy's multirotor as a plant (the ``hardware`` extra)
+``termination``    when a flight ends: targets, finish line, stall, faults, leaving
 ``checks``         checks of a mission before it flies, and the hazards it warns of
 =================  ==================================================================
 """

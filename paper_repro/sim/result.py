@@ -25,7 +25,7 @@ OPTIONAL_ARRAYS = ("region_velocities", "set_points", "y")
 """Arrays a result holds only where the run has them (see :class:`SimulationResult`)."""
 
 
-OUTCOMES = ("completed", "stalled", "step_limit", "fault")
+OUTCOMES = ("completed", "stalled", "step_limit", "fault", "left_workspace")
 """How a run ends: ``completed`` (every target reached, or for a passage the finish line
 crossed), ``stalled`` (the NMPC deadlocked, see
 :class:`~paper_repro.config.SimulationParams`), ``step_limit`` (``max_steps`` flown first),

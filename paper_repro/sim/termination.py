@@ -9,7 +9,10 @@ After each step, in this order:
 3. a flight is stalled when it has moved slower than ``stall_speed`` for ``stall_time``
    while still farther than ``stall_distance`` from its target (a deadlock);
 4. a flight ends as a fault after more than ``fault_steps`` steps in a row without a usable
-   measured state or solve (:data:`~paper_repro.sim.result.FAULT_STATUSES`).
+   measured state or solve (:data:`~paper_repro.sim.result.FAULT_STATUSES`);
+5. with ``simulation.workspace_exit`` set, a flight has left the workspace when a position
+   state is farther than that outside the vehicle's position bounds (the quadrotor below
+   the ground: a crash).
 
 A flight that none of these ends stops at its step limit.
 """
@@ -48,6 +51,11 @@ class Termination:
         self.stall_steps = int(np.ceil(sim.stall_time / ts))
         self.ts = ts
         self.velocity = np.array(model.velocity, dtype=np.intp)
+        self.position = np.array(model.position, dtype=np.intp)
+        exit_ = sim.workspace_exit
+        self.inside = (None if exit_ is None else
+                       (np.asarray(model.state_lower, float)[self.position] - exit_,
+                        np.asarray(model.state_upper, float)[self.position] + exit_))
         self.reached = np.full(len(self.targets), -1)
         self.target_index, self.outcome = 0, "step_limit"
         self.faults_in_a_row, self.error, self._slow = 0, math.inf, 0
@@ -83,6 +91,10 @@ class Termination:
             return self._end("stalled")
         if self.faults_in_a_row > sim.fault_steps:
             return self._end("fault")
+        if self.inside is not None:
+            p = x[self.position]
+            if (p < self.inside[0]).any() or (p > self.inside[1]).any():
+                return self._end("left_workspace")
         return False
 
     def _end(self, outcome: str) -> bool:

@@ -5,6 +5,7 @@
 ``rti``            :class:`RealTimeNMPC`, the real-time iteration (SQP, Gauss-Newton)
 ``linearisation``  the linearisation of (21) at the previous plan and the QP's layout
 ``riccati_qp``     the stage-wise QP solved by a Riccati recursion (C, compiled once)
+``relaxed_qp``     the same QP with soft state bounds (exact ℓ1), when it has no solution
 ``factory``        :func:`make_controller`: the solver a config names
 =================  ==================================================================
 """

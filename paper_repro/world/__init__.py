@@ -15,6 +15,7 @@ the LiDAR sees of them, and what the robot makes of it: a map and a guide.
 ``tracking``       :class:`RegionTracker`, a Kalman filter of the regions' velocities
 ``local_map``      :class:`VoxelMap`, a bounded log-odds map of the scans (an option)
 ``guide``          :class:`Guide`, a path on the map handing the NMPC its set-points
+``wind``           mean wind, Dryden turbulence, 1-cosine gusts (for a plant)
 =================  ==================================================================
 """
 
