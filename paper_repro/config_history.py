@@ -26,6 +26,7 @@ ADDED = {
     ("simulation", "approach_time"): 150.0,
     ("tracker", None): None,
     ("solver", "relaxed_qp"): False,
+    ("solver", "cold_start"): "rti",
     ("simulation", "workspace_exit"): None,
 }
 """Settings added after the committed evidence was flown, (part, name) → the value that flies

@@ -170,3 +170,35 @@ def test_faults_act_on_what_the_plant_measured():
 def test_an_object_without_a_step_is_refused_as_a_plant():
     with pytest.raises(ValueError, match="^plant must have a step"):
         simulate(CONFIG, model=point_mass(), scene=SCENE, max_steps=1, plant=object())
+
+
+def test_a_converged_cold_start_gives_the_reference_plan_in_one_solve():
+    """From rest 1.5 m before the wall, one ``solve`` with ``cold_start="converged"`` returns
+    IPOPT's plan (within 1 mm, the issue's bound is 5 cm); the default one Gauss-Newton step
+    from rest stops centimetres short of it."""
+    from paper_repro.world.lidar import Lidar
+
+    model = point_mass()
+
+    def solver(**options):
+        return make_controller(dataclasses.replace(
+            CONFIG, solver=dataclasses.replace(CONFIG.solver, **options)), model)
+
+    x0, target = np.array([2.0, -0.3, 2.0, 0, 0, 0]), np.array([8.0, -0.3, 2.0])
+    visible = Lidar(SCENE.clouds).scan(x0[:3])
+    assert sum(len(v) for v in visible) > 0
+    reference = solver(nlp_solver="reference").solve(x0, target, visible)
+    assert reference.success
+    converged = solver(cold_start="converged").solve(x0, target, visible)
+    one_step = solver().solve(x0, target, visible)
+    assert converged.status == "converged" and converged.iterations > 1
+    gap = np.abs(converged.x[:, :3] - reference.x[:, :3]).max()
+    assert gap < 1e-3
+    assert np.abs(one_step.x[:, :3] - reference.x[:, :3]).max() > 10 * gap
+
+
+def test_a_bad_cold_start_is_refused_by_name():
+    from paper_repro.config import SolverParams
+
+    with pytest.raises(ValueError, match="cold_start"):
+        SolverParams(cold_start="warm")

@@ -330,6 +330,10 @@ class SolverParams:
         ``"riccati"`` (the active set without a budget, HPIPM as its fallback, whose 5-15 ms
         calls break T_s where the set changes by dozens of bounds at once: a chattering
         Euclidean passage, a region crossing the horizon) or ``"hpipm"`` (HPIPM for every QP).
+    cold_start : ``"rti"`` (default): the ``rti`` solver's first solve of a flight takes
+        ``sqp_iterations`` steps from rest, like every instant. ``"converged"``: it iterates
+        the damped SQP to convergence, so that the flight starts from a solution of (21), as
+        the reference does (:class:`~paper_repro.solvers.rti.RealTimeNMPC`).
     relaxed_qp : ``True``: a QP of the ``rti`` solver that no QP method solves (an infeasible
         linearisation: a state that cannot be brought back inside 𝒳, a plan that cannot end
         at rest within the horizon) is solved with soft state bounds and terminal rows
@@ -341,11 +345,13 @@ class SolverParams:
     sqp_iterations: int = 1
     line_search: bool = False
     qp_solver: str = "riccati-ipm"
+    cold_start: str = "rti"
     relaxed_qp: bool = False
 
     def __post_init__(self):
         require_choice("nlp_solver", self.nlp_solver, ("rti", "reference"))
         require_choice("qp_solver", self.qp_solver, QP_SOLVERS)
+        require_choice("cold_start", self.cold_start, ("rti", "converged"))
         for name in ("line_search", "relaxed_qp"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")

@@ -18,8 +18,8 @@ from paper_repro.vehicles.base import VehicleModel
 def make_controller(config: Config | None = None, model: VehicleModel | None = None,
                     **options) -> Controller:
     """The controller named by ``config.solver.nlp_solver``: ``"rti"`` (:class:`RealTimeNMPC`,
-    with ``solver.sqp_iterations``, ``solver.line_search``, ``solver.qp_solver`` and
-    ``solver.relaxed_qp``) or
+    with ``solver.sqp_iterations``, ``solver.line_search``, ``solver.qp_solver``,
+    ``solver.cold_start`` and ``solver.relaxed_qp``) or
     ``"reference"`` (:class:`TrackingNMPC`).
 
     ``model`` : the vehicle (the quadrotor by default). ``options`` go to the controller's
@@ -32,5 +32,6 @@ def make_controller(config: Config | None = None, model: VehicleModel | None = N
     options.setdefault("max_iter", s.sqp_iterations)
     options.setdefault("qp_solver", s.qp_solver)
     options.setdefault("line_search", s.line_search)
+    options.setdefault("cold_start", s.cold_start)
     options.setdefault("relaxed_qp", s.relaxed_qp)
     return RealTimeNMPC(config, model, **options)

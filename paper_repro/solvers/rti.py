@@ -54,6 +54,12 @@ from paper_repro.solvers.riccati_qp import BoundStageQP, StageQP
 from paper_repro.validation import as_vector
 from paper_repro.vehicles.base import VehicleModel
 
+COLD_STARTS = ("rti", "converged")
+"""How a solve without a previous plan iterates (``RealTimeNMPC(cold_start=...)``)."""
+
+COLD_START_ITERATIONS = 100
+"""The most damped SQP steps a ``"converged"`` cold start takes."""
+
 CAPACITIES = (1, 8, 16, 24, 32, 48, 64)
 """The LiDAR capacities (points per region slot) compiled besides the config's
 ``points_per_region`` (see :class:`LinearisationLadder`). Random passages see up to 64 points
@@ -88,6 +94,14 @@ class RealTimeNMPC:
         controller with the Euclidean metric. ``False``: every full step (the textbook
         real-time iteration, whose inputs fall into a period-2 oscillation between their
         bounds when a region moves at the vehicle).
+    cold_start : ``"rti"`` (default): a solve without a previous plan (the first of a
+        flight, or the first after :meth:`reset`) takes ``max_iter`` steps from rest, like
+        every other instant. ``"converged"``: that solve iterates the damped SQP
+        (:class:`MeritLineSearch`) until the step is below ``step_tol``, at most
+        :data:`COLD_START_ITERATIONS` steps, so that a single ``solve`` from rest returns a
+        solution of (21), not one Gauss-Newton step towards one. From rest the full step can
+        lead to another local solution than the reference's: over an obstacle rather than
+        round it.
     relaxed_qp : ``True``: a QP that no backend solves (an infeasible linearisation) is
         solved again with soft state bounds and terminal rows
         (:class:`~paper_repro.solvers.relaxed_qp.RelaxedQP`, an exact ℓ1 penalty); its step
@@ -108,7 +122,8 @@ class RealTimeNMPC:
     def __init__(self, config: Config | None = None, model: VehicleModel | None = None,
                  max_iter: int = 1, step_tol: float = 1e-6, qp_solver: str = "riccati-ipm",
                  compile: bool = True, capacities: tuple[int, ...] = CAPACITIES,
-                 line_search: bool | None = None, relaxed_qp: bool = False):
+                 line_search: bool | None = None, cold_start: str = "rti",
+                 relaxed_qp: bool = False):
         if not (isinstance(max_iter, int) and max_iter >= 1):
             raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
         if not step_tol > 0:
@@ -120,6 +135,8 @@ class RealTimeNMPC:
                              f"{line_search!r}")
         if qp_solver not in QP_SOLVERS:
             raise ValueError(f"qp_solver must be one of {QP_SOLVERS}, got {qp_solver!r}")
+        if cold_start not in COLD_STARTS:
+            raise ValueError(f"cold_start must be one of {COLD_STARTS}, got {cold_start!r}")
         if not isinstance(relaxed_qp, bool):
             raise ValueError(f"relaxed_qp must be True or False, got {relaxed_qp!r}")
         self.ocp = ocp = OCP(config, model)
@@ -128,12 +145,16 @@ class RealTimeNMPC:
             line_search = self.config.solver.line_search
         self.max_iter, self.step_tol = max_iter, step_tol
         self.layout = QPLayout.of(ocp)
-        self.ladder = LinearisationLadder(ocp, capacities, compile, values=line_search)
+        self.cold_start = cold_start
+        converge = cold_start == "converged"
+        self.ladder = LinearisationLadder(ocp, capacities, compile,
+                                          values=line_search or converge)
         self.qp_solver = qp_solver if self.ladder.native else "hpipm"
         bounded = np.isfinite(ocp.state_bounds[0]) | np.isfinite(ocp.state_bounds[1])
         self.qp = QPChain(self.layout, self.qp_solver,
                           RelaxedQP(self.layout, bounded) if relaxed_qp else None)
         self.line_search = MeritLineSearch(self.layout, max_trials=4 if line_search else 0)
+        self._cold_search = MeritLineSearch(self.layout) if converge else None
         self._lbw, self._ubw = self.layout.bounds(ocp)
         position = np.array(ocp.model.position, dtype=np.intp)
         self._has_position = len(position) > 0
@@ -188,6 +209,10 @@ class RealTimeNMPC:
         params = np.concatenate([target, self.ladder.pack(visible, ocp.output(x0), rung.scan,
                                                           velocities)])
         X, U, a = self._guess(x0, previous)
+        search, max_iter = self.line_search, self.max_iter
+        if previous is None and self._cold_search is not None:  # a converged cold start
+            search, max_iter = self._cold_search, COLD_START_ITERATIONS
+            search.reset()
         lbw, ubw = self._lbw, self._ubw
         box = ocp.state_box(x0)
         if box[0] is not ocp.state_bounds[0] or box[1] is not ocp.state_bounds[1]:
@@ -201,11 +226,11 @@ class RealTimeNMPC:
                                         a + alpha * da, params)
 
         success, status, it, merit, relaxed = False, "iterated", 0, np.nan, False
-        for it in range(1, self.max_iter + 1):  # noqa: B007 - `it` is reported below
+        for it in range(1, max_iter + 1):  # noqa: B007 - `it` is reported below
             w = layout.scatter(X[1:], U, a, out=self._w)
             h, q, j, gap, eq, cost = self.ladder.evaluate(rung.linearisation, x0, X[1:], U, a,
                                                           params)
-            damped = self.line_search.damp(h)
+            damped = search.damp(h)
             np.subtract(lbw, w, out=lower)
             np.subtract(ubw, w, out=upper)
             dw = (self.qp.solve_bound(bound_qp) if bound_qp is not None
@@ -216,7 +241,7 @@ class RealTimeNMPC:
                                      "outside_state_box": lbw is not self._lbw}
                 break
             relaxed = relaxed or self.qp.last_relaxed
-            alpha, merit = self.line_search(dw, h, q, gap, eq, float(cost[0]), values)
+            alpha, merit = search(dw, h, q, gap, eq, float(cost[0]), values)
             dx, du, da = layout.gather(dw)
             if alpha != 1.0:  # (1.0·Δ is Δ, bit for bit: the full step skips the products)
                 dx, du, da = alpha * dx, alpha * du, alpha * da
