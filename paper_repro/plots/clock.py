@@ -8,7 +8,7 @@ import numpy as np
 from paper_repro.analysis import metrics
 from paper_repro.plots.common import LINESTYLES, MAX_POINTS, stride_indices
 
-# --- the mission's clock (paper_repro.analysis.clock, issue 12) -----------------------------------
+# --- the mission's clock (paper_repro.analysis.clock) ---------------------------------------------
 
 def plot_clock_levers(sweeps, paper_time: float = 500.0, tolerance: float = 0.10,
                       printed: dict | None = None):

@@ -9,7 +9,7 @@ from paper_repro.analysis import metrics
 from paper_repro.plots.common import MAX_POINTS, axes_or_new, envelope_indices
 from paper_repro.plots.flight import steps_in
 
-# --- the smooth sensing window (issue 13, part 2) ---------------------------------------------
+# --- the smooth sensing window ----------------------------------------------------------------
 
 def scan_change_times(result) -> np.ndarray:
     """Times (s) of the steps whose scan holds a different number of points from the scan

@@ -55,14 +55,14 @@ class RotorpyEffects:
     Attributes
     ----------
     motor_lag : τ_m, s, >= 0. Time constant of the rotor speeds' first-order lag (0: none).
-        *issue 55* nominal 0.03; sweep 0–0.07.
+        *typical* 0.03 (PX4's simulators use 0.0125–0.05; fitted x500 thrust lags 0.045–0.071).
     rotor_drag : k_d, N/(rad/s · m/s), >= 0. In-plane rotor drag (H force), −ω_i·k_d·v_air.
-        *issue 55* 8e-5 to 2.6e-4.
+        *typical* 8e-5 to 2.6e-4 (the x500's ``rotorDragCoefficient``).
     induced_inflow : k_z, N/(rad/s · m/s), >= 0. The same along the rotor axis.
     translational_lift : k_h, N/(m/s)², >= 0. Extra thrust k_h·(in-plane airspeed)².
     blade_flapping : k_flap, N·m/(rad/s · m/s), >= 0. Flapping moment at each hub.
     parasitic_drag : (c_Dx, c_Dy, c_Dz), N/(m/s)², each >= 0. Body drag −‖v‖·diag(c_D)·v
-        (airspeed in the body frame). *issue 55* about 1e-2.
+        (airspeed in the body frame). *typical* about 1e-2.
     thrust_scale : > 0. True thrust coefficient over the nominal b (1: none; ±10 %: 0.9, 1.1).
         The rotors turn at the speed the nominal b gives for the commanded thrust, √(f/b), and
         produce thrust_scale·f. The yaw-torque coefficient k_τ is unchanged.
