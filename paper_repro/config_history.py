@@ -27,6 +27,7 @@ ADDED = {
     ("tracker", None): None,
     ("solver", "relaxed_qp"): False,
     ("solver", "cold_start"): "rti",
+    ("plant", None): None,
     ("simulation", "workspace_exit"): None,
 }
 """Settings added after the committed evidence was flown, (part, name) → the value that flies

@@ -7,11 +7,17 @@ import sys
 import numpy as np
 import pytest
 
-from paper_repro.config import QuadrotorParams
+from paper_repro.config import PlantParams, QuadrotorParams
 from paper_repro.sim.plant import QuadrotorPlant
-from paper_repro.sim.rotorpy_plant import RotorpyEffects, RotorpyPlant
+from paper_repro.sim.rotorpy_plant import RotorpyPlant
 from paper_repro.vehicles.quadrotor import equilibrium
 from paper_repro.world.wind import OneCosineGust, Wind
+
+
+def effects(**settings) -> PlantParams:
+    """RotorPy's plant with these settings (the effects need it)."""
+    return PlantParams(simulator="rotorpy", **settings)
+
 
 TS = 0.01
 PARAMS = QuadrotorParams()
@@ -105,8 +111,8 @@ def test_effects_off_it_flies_our_plant_closed_loop(rotorpy):
 
 def test_rotor_speeds_persist_between_steps(rotorpy):
     """With a lag, two steps of T_s land where one step of 2·T_s does, and reset restarts."""
-    effects = RotorpyEffects(motor_lag=0.03)
-    short, long = RotorpyPlant(PARAMS, TS, effects), RotorpyPlant(PARAMS, 2 * TS, effects)
+    lag = effects(motor_lag=0.03)
+    short, long = RotorpyPlant(PARAMS, TS, lag), RotorpyPlant(PARAMS, 2 * TS, lag)
     x0, u = np.zeros(12), np.full(4, 1.2 * HOVER)
     a = fly(short, x0, [u, u])[-1]
     b = fly(long, x0, [u])[-1]
@@ -123,7 +129,7 @@ def test_motor_lag_is_a_first_order_lag_of_tau(rotorpy):
     (within 2 %: thrust is k·ω², first-order only for small steps). Without a lag the thrust
     steps at once."""
     tau, dt = 0.03, 0.001
-    plant = RotorpyPlant(PARAMS, dt, RotorpyEffects(motor_lag=tau))
+    plant = RotorpyPlant(PARAMS, dt, effects(motor_lag=tau))
     u = np.full(4, 1.1 * HOVER)
     x = np.zeros(12)
     plant.reset(x)
@@ -151,12 +157,12 @@ def test_mismatch_of_thrust_mass_and_centre_of_mass(rotorpy):
     x0, u0 = equilibrium([0.0, 0.0, 5.0])
     t = 1.0
     for thrust_scale, mass_scale in ((1.1, 1.0), (0.9, 1.0), (1.0, 1.1)):
-        effects = RotorpyEffects(thrust_scale=thrust_scale, mass_scale=mass_scale)
-        x = fly(RotorpyPlant(PARAMS, TS, effects), x0, [u0] * round(t / TS))[-1]
+        mismatch = effects(thrust_scale=thrust_scale, mass_scale=mass_scale)
+        x = fly(RotorpyPlant(PARAMS, TS, mismatch), x0, [u0] * round(t / TS))[-1]
         a = PARAMS.gravity * (thrust_scale / mass_scale - 1)
         assert x[2] - 5.0 == pytest.approx(0.5 * a * t**2, rel=1e-6)
     c, t = 0.02, 0.1
-    x = fly(RotorpyPlant(PARAMS, TS, RotorpyEffects(com_offset=(c, 0.0, 0.0))), x0,
+    x = fly(RotorpyPlant(PARAMS, TS, effects(com_offset=(c, 0.0, 0.0))), x0,
             [u0] * round(t / TS))[-1]
     assert x[4] == pytest.approx(0.5 * 4 * c * HOVER / PARAMS.inertia[1] * t**2, rel=0.01)
     assert abs(x[3]) < 1e-12
@@ -165,7 +171,7 @@ def test_mismatch_of_thrust_mass_and_centre_of_mass(rotorpy):
 def test_wind_drifts_the_vehicle_downwind(rotorpy):
     """With drag on, a mean wind along (1, 1, 0) pushes a hovering vehicle along it, at the
     parasitic drag's initial acceleration c_D·|w|·w/m; still air does not move it."""
-    drag = RotorpyEffects(parasitic_drag=(0.05, 0.05, 0.05))
+    drag = effects(parasitic_drag=(0.05, 0.05, 0.05))
     x0, u0 = equilibrium([0.0, 0.0, 5.0])
     wind = np.array([3.0, 3.0, 0.0]) / np.sqrt(2)
     x = fly(RotorpyPlant(PARAMS, TS, drag, wind=Wind(mean=wind)), x0, [u0] * 100)[-1]
@@ -184,11 +190,11 @@ def test_the_wind_is_read_at_each_sampling_instant(rotorpy):
         asked.append(t)
         return np.zeros(3)
 
-    plant = RotorpyPlant(PARAMS, TS, RotorpyEffects(rotor_drag=1e-4), wind=wind)
+    plant = RotorpyPlant(PARAMS, TS, effects(rotor_drag=1e-4), wind=wind)
     fly(plant, np.zeros(12), [np.full(4, HOVER)] * 5)
     assert asked == pytest.approx([0.0, 0.01, 0.02, 0.03, 0.04])
     gust = OneCosineGust((0.0, 3.0, 0.0), duration=0.5, start=0.2)
-    x = fly(RotorpyPlant(PARAMS, TS, RotorpyEffects(rotor_drag=1e-4), wind=gust),
+    x = fly(RotorpyPlant(PARAMS, TS, effects(rotor_drag=1e-4), wind=gust),
             np.zeros(12), [np.full(4, HOVER)] * 40)
     assert np.abs(x[:21, :3]).max() < 1e-12  # nothing before the gust at 0.2 s
     assert x[-1, 1] > 1e-4 and abs(x[-1, 0]) < 1e-12  # then a push along it
@@ -208,23 +214,23 @@ def test_wind_without_an_aerodynamic_effect_warns(rotorpy):
 
 
 def test_a_wind_of_the_wrong_shape_is_named(rotorpy):
-    plant = RotorpyPlant(PARAMS, TS, RotorpyEffects(rotor_drag=1e-4), wind=lambda t: (1.0, 2.0))
+    plant = RotorpyPlant(PARAMS, TS, effects(rotor_drag=1e-4), wind=lambda t: (1.0, 2.0))
     with pytest.raises(ValueError, match=r"wind\(t\) must be a finite array of shape \(3,\)"):
         plant.step(np.zeros(12), np.full(4, HOVER))
 
 
 @pytest.mark.parametrize("make, match", [
-    (lambda: RotorpyEffects(motor_lag=-0.01), "motor_lag must be a finite number >= 0"),
-    (lambda: RotorpyEffects(rotor_drag=np.nan), "rotor_drag must be a finite number >= 0"),
-    (lambda: RotorpyEffects(blade_flapping=np.inf), "blade_flapping must be a finite number"),
-    (lambda: RotorpyEffects(thrust_scale=0.0), "thrust_scale must be a finite number > 0"),
-    (lambda: RotorpyEffects(mass_scale=np.nan), "mass_scale must be a finite number > 0"),
-    (lambda: RotorpyEffects(parasitic_drag=(0.01, -0.01, 0.01)),
+    (lambda: effects(motor_lag=-0.01), "motor_lag must be a finite number >= 0"),
+    (lambda: effects(rotor_drag=np.nan), "rotor_drag must be a finite number >= 0"),
+    (lambda: effects(blade_flapping=np.inf), "blade_flapping must be a finite number"),
+    (lambda: effects(thrust_scale=0.0), "thrust_scale must be a finite number > 0"),
+    (lambda: effects(mass_scale=np.nan), "mass_scale must be a finite number > 0"),
+    (lambda: effects(parasitic_drag=(0.01, -0.01, 0.01)),
      "parasitic_drag must be 3 finite numbers >= 0"),
-    (lambda: RotorpyEffects(com_offset=(0.01, np.nan, 0.0)), "com_offset must be 3 finite"),
+    (lambda: effects(com_offset=(0.01, np.nan, 0.0)), "com_offset must be 3 finite"),
     (lambda: RotorpyPlant(ts=0.0), r"ts \(s\) must be a finite number > 0"),
     (lambda: RotorpyPlant(rtol=-1.0), "rtol must be a finite number > 0"),
-    (lambda: RotorpyPlant(effects={"motor_lag": 0.03}), "effects must be a RotorpyEffects"),
+    (lambda: RotorpyPlant(effects={"motor_lag": 0.03}), "effects must be a PlantParams"),
     (lambda: RotorpyPlant(wind=(3.0, 0.0, 0.0)), "wind must be a callable"),
 ])
 def test_bad_input_is_named_at_construction(make, match):
@@ -243,7 +249,8 @@ def test_without_rotorpy_the_plant_names_the_extra(monkeypatch):
 def test_without_rotorpy_the_package_imports():
     code = ("import sys; sys.modules['rotorpy'] = None; import paper_repro, paper_repro.sim, "
             "paper_repro.sim.rotorpy_plant, paper_repro.world.wind; "
-            "print(paper_repro.sim.rotorpy_plant.RotorpyEffects(motor_lag=0.03).motor_lag)")
+            "print(paper_repro.config.PlantParams(simulator='rotorpy', motor_lag=0.03)"
+            ".motor_lag)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "0.03"

@@ -20,7 +20,15 @@ from paper_repro.cli.args import (
     setting,
     with_settings,
 )
-from paper_repro.config import GUIDES, PREDICTIONS, QP_SOLVERS, Config
+from paper_repro.config import (
+    ESTIMATES,
+    GUIDES,
+    PLANT_SIMULATORS,
+    PREDICTIONS,
+    QP_SOLVERS,
+    TURBULENCE,
+    Config,
+)
 from paper_repro.world.scan_regions import REGION_VOXEL, SCAN_SCENARIO
 from paper_repro.world.scenarios import SCENARIOS
 
@@ -30,7 +38,8 @@ DESCRIPTION = """Fly one closed-loop mission and save its result (result.npz, co
 
 Your own scene: --cloud FILE (repeatable; .npy .npz .csv .xyz .txt .ply .pcd) with --start and
 --target; the flight is a passage that ends 2 m past the clouds. Any setting of the
-configuration: --set section.field=value (repeatable), e.g. --set distance.eta=0.2."""
+configuration: --set section.field=value (repeatable), e.g. --set distance.eta=0.2.
+Against another simulator: --plant rotorpy --motor-lag 0.03 --rotor-drag 1e-4 --wind 3."""
 
 
 def add_arguments(parser) -> None:
@@ -76,6 +85,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--guide", choices=GUIDES, default=None, metavar="PLANNER",
                         help=f"what hands the NMPC its set-point, one of {', '.join(GUIDES)} "
                              "(guide.planner; grid needs --map-voxel); default the preset's")
+    add_plant_arguments(parser)
     parser.add_argument("--max-steps", type=positive_int, default=None,
                         help="limit on closed-loop steps (default: the config's max_steps)")
     parser.add_argument("--out", required=True, help="directory for result.npz and config.json")
@@ -88,6 +98,28 @@ def add_arguments(parser) -> None:
                         metavar="SECTION.FIELD=VALUE",
                         help="any field of the configuration (paper_repro.config.Config), "
                              "applied last, checked as the dataclasses check it; repeatable")
+
+
+def add_plant_arguments(parser) -> None:
+    """What the vehicle flies in (``config.plant``, :class:`~paper_repro.config.PlantParams`):
+    the simulator and its best-known effects by name; the others by ``--set plant.NAME=``."""
+    parser.add_argument("--plant", choices=PLANT_SIMULATORS, default=None, metavar="SIMULATOR",
+                        help="ours (default: the NMPC's own model, integrated by RK45) or "
+                             "rotorpy (RotorPy's multirotor; pip install -e \".[hardware]\")")
+    parser.add_argument("--motor-lag", type=float, default=None, metavar="S",
+                        help="rotorpy: the rotor speeds' time constant, s (e.g. 0.03)")
+    parser.add_argument("--rotor-drag", type=float, default=None, metavar="K_D",
+                        help="rotorpy: rotor drag k_d, N/(rad/s · m/s) (e.g. 1e-4)")
+    parser.add_argument("--wind", type=float, default=None, metavar="M/S",
+                        help="rotorpy: a mean wind along +y (across the paper's flights), m/s; "
+                             "needs a drag (--rotor-drag)")
+    parser.add_argument("--turbulence", choices=TURBULENCE, default=None, metavar="LEVEL",
+                        help=f"rotorpy: Dryden turbulence, one of {', '.join(TURBULENCE)}")
+    parser.add_argument("--estimation", choices=tuple(ESTIMATES), default=None,
+                        metavar="LEVEL", help="the state the controller is given: perfect "
+                                              "(default), mocap or vio (noise and latency)")
+    parser.add_argument("--delay", type=non_negative_int, default=None, metavar="STEPS",
+                        help="computation delay, in steps of T_s (default 0)")
 
 
 def add_cloud_arguments(parser) -> None:
@@ -162,7 +194,15 @@ def run_config(args) -> Config:
                    ("--window", "distance", "window", args.window),
                    ("--prediction", "nmpc", "prediction", args.prediction),
                    ("--map-voxel", "sensor", "map_voxel", args.map_voxel),
-                   ("--guide", "guide", "planner", args.guide)) if value is not None]
+                   ("--guide", "guide", "planner", args.guide),
+                   ("--plant", "plant", "simulator", args.plant),
+                   ("--motor-lag", "plant", "motor_lag", args.motor_lag),
+                   ("--rotor-drag", "plant", "rotor_drag", args.rotor_drag),
+                   ("--wind", "plant", "wind", None if args.wind is None
+                    else (0.0, float(args.wind), 0.0)),
+                   ("--turbulence", "plant", "turbulence", args.turbulence),
+                   ("--estimation", "plant", "estimation", args.estimation),
+                   ("--delay", "plant", "delay_steps", args.delay)) if value is not None]
     return with_settings(cfg, options + list(args.settings))  # checked together: --set wins
 
 

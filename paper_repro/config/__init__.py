@@ -6,7 +6,7 @@ open are marked *chosen* and justified here and in ``environment.md``.
 
 =================  ==================================================================
 ``problem``        the quadrotor, the distance, the barrier, the NMPC, the solver
-``world``          the mission, the LiDAR, the region tracker, the guide
+``world``          the mission, the LiDAR, the region tracker, the guide, the plant
 (here)             :class:`Config`, every part of one run
 =================  ==================================================================
 """
@@ -29,17 +29,22 @@ from paper_repro.config.problem import (
     relaxed_box,
 )
 from paper_repro.config.world import (
+    ESTIMATES,
     GUIDES,
+    PLANT_SIMULATORS,
+    TURBULENCE,
     GuideParams,
+    PlantParams,
     SensorParams,
     SimulationParams,
     TrackerParams,
 )
 from paper_repro.config_history import moved_settings, with_added, without_added
 
-__all__ = ["BarrierParams", "Config", "DistanceParams", "GUIDES", "GuideParams", "NMPCParams",
-           "PREDICTIONS", "QP_SOLVERS", "QuadrotorParams", "relaxed_box", "SensorParams",
-           "SimulationParams", "SolverParams", "TrackerParams"]
+__all__ = ["BarrierParams", "Config", "DistanceParams", "ESTIMATES", "GUIDES", "GuideParams",
+           "NMPCParams", "PLANT_SIMULATORS", "PlantParams", "PREDICTIONS", "QP_SOLVERS",
+           "QuadrotorParams", "relaxed_box", "SensorParams", "SimulationParams",
+           "SolverParams", "TrackerParams", "TURBULENCE"]
 
 
 @dataclass(frozen=True)
@@ -47,8 +52,9 @@ class Config:
     """Everything that defines one run; saved as ``config.json`` beside each result.
 
     The problem's data are ``quadrotor``, ``distance``, ``barrier``, ``nmpc`` and the LiDAR's
-    range (``sensor.range``); ``solver`` says how the problem is solved, and ``simulation`` and
-    the rest of ``sensor`` describe the world it is flown in.
+    range (``sensor.range``); ``solver`` says how the problem is solved, and ``simulation``,
+    the rest of ``sensor``, ``tracker``, ``guide`` and ``plant`` describe the world it is
+    flown in.
 
     A ``config.json`` written before a part existed (e.g. ``sensor``) loads with that part's
     defaults, and one written before a setting moved loads it in its new place
@@ -64,6 +70,7 @@ class Config:
     sensor: SensorParams = field(default_factory=SensorParams)
     guide: GuideParams = field(default_factory=GuideParams)
     tracker: TrackerParams = field(default_factory=TrackerParams)
+    plant: PlantParams = field(default_factory=PlantParams)
 
     def __post_init__(self):
         for f in dataclasses.fields(self):

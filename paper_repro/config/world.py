@@ -1,9 +1,10 @@
-"""The world a closed loop flies: the mission, the LiDAR, the region tracker and the guide."""
+"""The world a closed loop flies: the mission, the LiDAR, the region tracker, the guide and the
+plant (the simulator, its effects, the wind, the state estimate and the delay)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 from paper_repro.validation import (
     is_number,
@@ -238,3 +239,134 @@ class GuideParams:
                 and self.lookahead >= self.cell):
             raise ValueError(f"lookahead must be a finite number >= cell = {self.cell} m, got "
                              f"{self.lookahead!r}")
+
+
+PLANT_SIMULATORS = ("ours", "rotorpy")
+"""What integrates the vehicle (``PlantParams.simulator``)."""
+
+TURBULENCE = ("none", "light", "moderate", "severe")
+"""Dryden turbulence levels of MIL-F-8785C (``PlantParams.turbulence``)."""
+
+ESTIMATES = {
+    "perfect": (0.0, 0.0, 0.0, 0.0, 0),
+    "mocap": (0.002, 0.002, 0.03, 0.01, 1),
+    "vio": (0.02, 0.01, 0.05, 0.02, 3),
+}
+"""The state estimates of ``PlantParams.estimation``: (σ_position m, σ_angle rad,
+σ_velocity m/s, σ_rate rad/s, latency in steps of T_s). ``mocap``: a motion-capture system,
+1–3 mm and about 3 cm/s, 6–7 ms late (one step of 10 ms). ``vio``: visual-inertial
+odometry, centimetres, 20–50 ms late (three steps); these magnitudes are an assumption, not
+a measurement of one system."""
+
+
+@dataclass(frozen=True)
+class PlantParams:
+    """What the vehicle flies in, besides its model: the simulator, the effects the NMPC's
+    model leaves out, the wind, the state estimate and the computation delay
+    (:func:`paper_repro.sim.plant.plant_for`). The defaults are the paper's: our own
+    integration of the NMPC's model, perfect state, no delay. The NMPC always predicts with
+    its nominal model.
+
+    Attributes
+    ----------
+    simulator : ``"ours"`` (default, :class:`~paper_repro.sim.plant.QuadrotorPlant`) or
+        ``"rotorpy"`` (:class:`~paper_repro.sim.rotorpy_plant.RotorpyPlant`, RotorPy's
+        multirotor, the ``hardware`` extra). The effects below need ``"rotorpy"``.
+    motor_lag : τ_m, s, >= 0. Time constant of the rotor speeds' first-order lag (0: none).
+        *typical* 0.03 (PX4's simulators use 0.0125–0.05; fitted x500 thrust lags
+        0.045–0.071).
+    rotor_drag : k_d, N/(rad/s · m/s), >= 0. In-plane rotor drag (H force), −ω_i·k_d·v_air.
+        *typical* 8e-5 to 2.6e-4 (the x500's ``rotorDragCoefficient``).
+    induced_inflow : k_z, N/(rad/s · m/s), >= 0. The same along the rotor axis.
+    translational_lift : k_h, N/(m/s)², >= 0. Extra thrust k_h·(in-plane airspeed)².
+    blade_flapping : k_flap, N·m/(rad/s · m/s), >= 0. Flapping moment at each hub.
+    parasitic_drag : (c_Dx, c_Dy, c_Dz), N/(m/s)², each >= 0. Body drag −‖v‖·diag(c_D)·v
+        (airspeed in the body frame). *typical* about 1e-2.
+    thrust_scale : > 0. True thrust coefficient over the nominal b (1: none; ±10 %: 0.9, 1.1).
+        The rotors turn at the speed the nominal b gives for the commanded thrust, √(f/b), and
+        produce thrust_scale·f. The yaw-torque coefficient k_τ is unchanged.
+    mass_scale : > 0. True mass over the nominal one (1: none). The inertia is unchanged.
+    com_offset : (3,) m. Centre of mass from the geometric centre, body frame. The rotors are
+        placed at their arm positions minus this offset; the inertia is unchanged. The state
+        is the centre of mass's (RotorPy integrates the centre of mass).
+    wind : (3,) m/s, the mean wind in the world frame. Wind acts through drag, so it needs
+        ``rotor_drag``, ``induced_inflow`` or ``parasitic_drag`` above 0.
+    turbulence : Dryden turbulence on top of the mean wind, one of :data:`TURBULENCE`
+        (:func:`paper_repro.world.wind.dryden_turbulence`, at the start's altitude).
+    gust : (3,) m/s, the peak of one 1-cosine gust (0: none), lasting ``gust_duration`` s
+        from ``gust_start`` s.
+    estimation : the state the controller is given, one of :data:`ESTIMATES`: the true
+        state (``"perfect"``, default) or an estimate with noise and latency.
+    delay_steps : computation delay, in steps of T_s (0, 1 or 2 typical): the input computed
+        from the measurement at step k is applied from step k + delay_steps; hover thrust
+        until then.
+    seed : seed of the turbulence and of the estimate's noise, an integer >= 0.
+    """
+
+    simulator: str = "ours"
+    motor_lag: float = 0.0
+    rotor_drag: float = 0.0
+    induced_inflow: float = 0.0
+    translational_lift: float = 0.0
+    blade_flapping: float = 0.0
+    parasitic_drag: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    thrust_scale: float = 1.0
+    mass_scale: float = 1.0
+    com_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    wind: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    turbulence: str = "none"
+    gust: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gust_duration: float = 0.75
+    gust_start: float = 0.0
+    estimation: str = "perfect"
+    delay_steps: int = 0
+    seed: int = 0
+
+    def __post_init__(self):
+        require_choice("simulator", self.simulator, PLANT_SIMULATORS)
+        require_choice("turbulence", self.turbulence, TURBULENCE)
+        require_choice("estimation", self.estimation, tuple(ESTIMATES))
+        for name in ("motor_lag", "rotor_drag", "induced_inflow", "translational_lift",
+                     "blade_flapping", "gust_start"):
+            value = getattr(self, name)
+            if not (is_number(value) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        for name in ("thrust_scale", "mass_scale", "gust_duration"):
+            require_positive(name, getattr(self, name))
+        for name, low in (("parasitic_drag", 0.0), ("com_offset", -math.inf),
+                          ("wind", -math.inf), ("gust", -math.inf)):
+            value = getattr(self, name)
+            if not (isinstance(value, (tuple, list)) and len(value) == 3
+                    and all(is_number(v) and math.isfinite(v) and v >= low for v in value)):
+                what = "finite numbers >= 0" if low == 0 else "finite numbers"
+                raise ValueError(f"{name} must be 3 {what}, got {value!r}")
+        require_int("delay_steps", self.delay_steps, 0)
+        require_int("seed", self.seed, 0)
+        extra = self.effects()
+        if self.simulator == "ours" and extra:
+            raise ValueError(f"{extra[0]} is an effect our plant (the NMPC's own model) does "
+                             "not have: it needs simulator 'rotorpy'")
+        if self.moving_air() and not self.aerodynamic:
+            raise ValueError("wind, turbulence and gusts act through drag: set rotor_drag, "
+                             "induced_inflow or parasitic_drag above 0")
+
+    def effects(self) -> list[str]:
+        """The names of the settings that are not our plant's (off: their default)."""
+        return [f.name for f in fields(self)
+                if f.name in _EFFECTS and getattr(self, f.name) != f.default]
+
+    def moving_air(self) -> bool:
+        """Whether the air moves: a mean wind, turbulence or a gust."""
+        return (any(self.wind) or self.turbulence != "none" or any(self.gust))
+
+    @property
+    def aerodynamic(self) -> bool:
+        """Whether any aerodynamic effect is on (only then does wind act)."""
+        return any(v > 0 for v in (self.rotor_drag, self.induced_inflow,
+                                   self.translational_lift, self.blade_flapping,
+                                   *self.parasitic_drag))
+
+
+_EFFECTS = ("motor_lag", "rotor_drag", "induced_inflow", "translational_lift", "blade_flapping",
+            "parasitic_drag", "thrust_scale", "mass_scale", "com_offset", "wind", "turbulence",
+            "gust")

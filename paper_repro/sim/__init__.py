@@ -6,6 +6,7 @@
 ``perception``     what the controller is given: scan, faults, predictor, local map
 ``plant``          what the loop flies (:class:`Plant`); the quadrotor's, RK45 in C
 ``rotorpy_plant``  RotorPy's multirotor as a plant (the ``hardware`` extra)
+``imperfect``      an estimated state (noise, latency) and a delayed input, around a plant
 ``termination``    when a flight ends: targets, finish line, stall, faults, leaving
 ``checks``         checks of a mission before it flies, and the hazards it warns of
 =================  ==================================================================

@@ -39,7 +39,7 @@ import casadi as ca
 import numpy as np
 
 from paper_repro._native import compiler, load_library
-from paper_repro.config import Config, QuadrotorParams
+from paper_repro.config import ESTIMATES, Config, QuadrotorParams
 from paper_repro.validation import as_vector
 from paper_repro.vehicles.base import VehicleModel, rk4
 from paper_repro.vehicles.quadrotor import (
@@ -177,10 +177,56 @@ class ModelPlant:
         return np.asarray(self._step(x, u), float).ravel()
 
 
-def plant_for(model: VehicleModel, config: Config):
-    """The plant a closed loop flies ``model`` with: :class:`QuadrotorPlant` (RK45 in C, as
-    the paper's ODE45) for the quadrotor of ``config``; :class:`ModelPlant` for any other
-    vehicle."""
-    if model.name == "quadrotor":
-        return QuadrotorPlant(config.quadrotor, config.nmpc.ts)
-    return ModelPlant(model, config.nmpc.ts)
+def plant_for(model: VehicleModel, config: Config, altitude: float = 2.0):
+    """The plant a closed loop flies ``model`` with, as ``config.plant`` says.
+
+    * The simulator: :class:`QuadrotorPlant` (RK45 in C, as the paper's ODE45) for the
+      quadrotor of ``config``, :class:`ModelPlant` for any other vehicle; or, with
+      ``plant.simulator = "rotorpy"``, :class:`~paper_repro.sim.rotorpy_plant.RotorpyPlant`
+      with the plant's effects and wind (:func:`wind_of`, its turbulence at ``altitude``, m).
+    * ``plant.estimation``: the controller is given an estimate
+      (:class:`~paper_repro.sim.imperfect.EstimatedState`).
+    * ``plant.delay_steps``: the inputs arrive late
+      (:class:`~paper_repro.sim.imperfect.DelayedInput`).
+    """
+    from paper_repro.sim.imperfect import DelayedInput, EstimatedState
+
+    p, ts = config.plant, config.nmpc.ts
+    quadrotor = model.name == "quadrotor"
+    if not quadrotor and (p.simulator != "ours" or p.estimation != "perfect"):
+        raise ValueError(f"plant.simulator {p.simulator!r} and plant.estimation "
+                         f"{p.estimation!r} are for the quadrotor; {model.name!r} flies "
+                         "simulator 'ours' with estimation 'perfect'")
+    if p.simulator == "rotorpy":
+        from paper_repro.sim.rotorpy_plant import RotorpyPlant
+
+        plant = RotorpyPlant(config.quadrotor, ts, p,
+                             wind=wind_of(config, altitude) if p.moving_air() else None)
+    elif quadrotor:
+        plant = QuadrotorPlant(config.quadrotor, ts)
+    else:
+        plant = ModelPlant(model, ts)
+    if p.estimation != "perfect":
+        s_p, s_a, s_v, s_r, latency = ESTIMATES[p.estimation]
+        plant = EstimatedState(plant, np.repeat([s_p, s_a, s_v, s_r], 3), latency, p.seed)
+    if p.delay_steps:
+        plant = DelayedInput(plant, p.delay_steps, model.rest(np.zeros(model.nx))[1])
+    return plant
+
+
+def wind_of(config: Config, altitude: float):
+    """The :class:`~paper_repro.world.wind.Wind` of ``config.plant``: its mean wind, its
+    Dryden turbulence at ``altitude`` (m, at least 0.5), seen at the mean wind's speed (at
+    least 1 m/s) from the mean wind's heading, and its 1-cosine gust."""
+    from paper_repro.world.wind import OneCosineGust, Wind, dryden_turbulence
+
+    p = config.plant
+    mean = np.asarray(p.wind, float)
+    turbulence = None
+    if p.turbulence != "none":
+        turbulence = dryden_turbulence(p.turbulence, max(float(altitude), 0.5),
+                                       max(float(np.linalg.norm(mean)), 1.0),
+                                       config.nmpc.ts, p.seed,
+                                       heading=float(np.arctan2(mean[1], mean[0])))
+    gusts = ((OneCosineGust(p.gust, p.gust_duration, p.gust_start),) if any(p.gust) else ())
+    return Wind(mean, turbulence, gusts)

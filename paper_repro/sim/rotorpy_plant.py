@@ -7,8 +7,9 @@ It takes our 12-state vector and the four rotor thrusts (N) of
 RotorPy's state dict and back. The vehicle is built from our
 :class:`~paper_repro.config.QuadrotorParams`.
 
-The effects RotorPy models and ours does not are in :class:`RotorpyEffects`. All are off by
-default. With all of them off the plant is our quadrotor, integrated by RotorPy.
+The effects RotorPy models and ours does not are settings of
+:class:`~paper_repro.config.PlantParams`. All are off by default. With all of them off the
+plant is our quadrotor, integrated by RotorPy.
 
 How RotorPy 3.0.0 is used, as read from its source:
 
@@ -32,13 +33,12 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from paper_repro.config import QuadrotorParams
-from paper_repro.validation import as_vector, is_number, require_positive
+from paper_repro.config import PlantParams, QuadrotorParams
+from paper_repro.validation import as_vector, require_positive
 from paper_repro.vehicles.quadrotor import N_INPUTS, N_STATES
 
 INSTALL = 'pip install -e ".[hardware]"'
@@ -48,66 +48,9 @@ _ROTORS = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, -1
 _DIRECTIONS = np.array([1, -1, 1, -1])  # yaw torque (k_τ/b)(f1 − f2 + f3 − f4)
 
 
-@dataclass(frozen=True)
-class RotorpyEffects:
-    """The effects of :class:`RotorpyPlant` that the NMPC's model leaves out. All off by default.
-
-    Attributes
-    ----------
-    motor_lag : τ_m, s, >= 0. Time constant of the rotor speeds' first-order lag (0: none).
-        *typical* 0.03 (PX4's simulators use 0.0125–0.05; fitted x500 thrust lags 0.045–0.071).
-    rotor_drag : k_d, N/(rad/s · m/s), >= 0. In-plane rotor drag (H force), −ω_i·k_d·v_air.
-        *typical* 8e-5 to 2.6e-4 (the x500's ``rotorDragCoefficient``).
-    induced_inflow : k_z, N/(rad/s · m/s), >= 0. The same along the rotor axis.
-    translational_lift : k_h, N/(m/s)², >= 0. Extra thrust k_h·(in-plane airspeed)².
-    blade_flapping : k_flap, N·m/(rad/s · m/s), >= 0. Flapping moment at each hub.
-    parasitic_drag : (c_Dx, c_Dy, c_Dz), N/(m/s)², each >= 0. Body drag −‖v‖·diag(c_D)·v
-        (airspeed in the body frame). *typical* about 1e-2.
-    thrust_scale : > 0. True thrust coefficient over the nominal b (1: none; ±10 %: 0.9, 1.1).
-        The rotors turn at the speed the nominal b gives for the commanded thrust, √(f/b), and
-        produce thrust_scale·f. The yaw-torque coefficient k_τ is unchanged.
-    mass_scale : > 0. True mass over the nominal one (1: none). The inertia is unchanged.
-    com_offset : (3,) m. Centre of mass from the geometric centre, body frame. The rotors are
-        placed at their arm positions minus this offset; the inertia is unchanged. The state
-        is the centre of mass's (RotorPy integrates the centre of mass).
-    """
-
-    motor_lag: float = 0.0
-    rotor_drag: float = 0.0
-    induced_inflow: float = 0.0
-    translational_lift: float = 0.0
-    blade_flapping: float = 0.0
-    parasitic_drag: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    thrust_scale: float = 1.0
-    mass_scale: float = 1.0
-    com_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    def __post_init__(self):
-        for name in ("motor_lag", "rotor_drag", "induced_inflow", "translational_lift",
-                     "blade_flapping"):
-            value = getattr(self, name)
-            if not (is_number(value) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-        for name in ("thrust_scale", "mass_scale"):
-            require_positive(name, getattr(self, name))
-        for name, low in (("parasitic_drag", 0.0), ("com_offset", -math.inf)):
-            value = getattr(self, name)
-            if not (isinstance(value, (tuple, list, np.ndarray)) and np.shape(value) == (3,)
-                    and all(is_number(v) and math.isfinite(v) and v >= low for v in value)):
-                what = "finite numbers >= 0" if low == 0 else "finite numbers (m)"
-                raise ValueError(f"{name} must be 3 {what}, got {value!r}")
-
-    @property
-    def aerodynamic(self) -> bool:
-        """Whether any aerodynamic effect is on (only then does wind act)."""
-        return any(v > 0 for v in (self.rotor_drag, self.induced_inflow,
-                                   self.translational_lift, self.blade_flapping,
-                                   *self.parasitic_drag))
-
-
 class RotorpyPlant:
     """Our quadrotor flown by RotorPy's ``Multirotor``, optionally with the effects of
-    :class:`RotorpyEffects` and a wind. Needs rotorpy 3.0.0 (``pip install -e ".[hardware]"``).
+    :class:`PlantParams` and a wind. Needs rotorpy 3.0.0 (``pip install -e ".[hardware]"``).
 
     State kept between steps: the rotor speeds (rad/s) and the time t = k·T_s (s). The 12-state
     vector itself comes in with every :meth:`step`.
@@ -129,19 +72,19 @@ class RotorpyPlant:
     """
 
     def __init__(self, params: QuadrotorParams | None = None, ts: float = 0.01,
-                 effects: RotorpyEffects | None = None, wind=None,
+                 effects: PlantParams | None = None, wind=None,
                  rtol: float = 1e-8, atol: float = 1e-10):
         if not isinstance(params, (QuadrotorParams, type(None))):
             raise ValueError(f"params must be a QuadrotorParams or None, got {params!r}")
-        if not isinstance(effects, (RotorpyEffects, type(None))):
-            raise ValueError(f"effects must be a RotorpyEffects or None, got {effects!r}")
+        if not isinstance(effects, (PlantParams, type(None))):
+            raise ValueError(f"effects must be a PlantParams or None, got {effects!r}")
         if wind is not None and not callable(wind):
             raise ValueError(f"wind must be a callable wind(t) -> (3,) m/s or None, got {wind!r}")
         require_positive("ts (s)", ts)
         for name, value in (("rtol", rtol), ("atol", atol)):
             require_positive(name, value)
         self.params = params or QuadrotorParams()
-        self.effects = effects or RotorpyEffects()
+        self.effects = effects or PlantParams()
         self.ts, self.wind, self.rtol, self.atol = float(ts), wind, float(rtol), float(atol)
         if wind is not None and not self.effects.aerodynamic:
             warnings.warn("wind acts only through an aerodynamic effect (rotor_drag, "
@@ -212,7 +155,7 @@ class RotorpyPlant:
         if self.wind is not None:
             state["wind"] = as_vector("wind(t)", self.wind(self.time), 3)
         # RotorPy's cmd_motor_thrusts asks for √(f/k_η) with its (true) k_η; scaling f by
-        # k_η/b makes that the nominal √(f/b) (see RotorpyEffects.thrust_scale).
+        # k_η/b makes that the nominal √(f/b) (see PlantParams.thrust_scale).
         control = {"cmd_motor_thrusts": u * self.effects.thrust_scale}
         # RotorPy draws (zero) motor noise from the legacy global generator: leave it as found.
         rng_state = np.random.get_state()  # noqa: NPY002
@@ -225,7 +168,7 @@ class RotorpyPlant:
         return from_rotorpy_state(new, x[3:6])
 
 
-def rotorpy_params(params: QuadrotorParams, effects: RotorpyEffects) -> dict:
+def rotorpy_params(params: QuadrotorParams, effects: PlantParams) -> dict:
     """RotorPy's parameter dict of our quadrotor with ``effects``.
 
     Rotor i sits at h·e_i in the "+" layout (rotor 1 on +x_b, 2 on +y_b, 3 on −x_b, 4 on −y_b),
