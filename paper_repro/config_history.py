@@ -27,6 +27,7 @@ ADDED = {
     ("tracker", None): None,
     ("solver", "relaxed_qp"): False,
     ("solver", "cold_start"): "rti",
+    ("solver", "shared_barrier"): False,
     ("plant", None): None,
     ("simulation", "workspace_exit"): None,
 }

@@ -19,7 +19,7 @@ def make_controller(config: Config | None = None, model: VehicleModel | None = N
                     **options) -> Controller:
     """The controller named by ``config.solver.nlp_solver``: ``"rti"`` (:class:`RealTimeNMPC`,
     with ``solver.sqp_iterations``, ``solver.line_search``, ``solver.qp_solver``,
-    ``solver.cold_start`` and ``solver.relaxed_qp``) or
+    ``solver.cold_start``, ``solver.relaxed_qp`` and ``solver.shared_barrier``) or
     ``"reference"`` (:class:`TrackingNMPC`).
 
     ``model`` : the vehicle (the quadrotor by default). ``options`` go to the controller's
@@ -34,4 +34,5 @@ def make_controller(config: Config | None = None, model: VehicleModel | None = N
     options.setdefault("line_search", s.line_search)
     options.setdefault("cold_start", s.cold_start)
     options.setdefault("relaxed_qp", s.relaxed_qp)
+    options.setdefault("shared_barrier", s.shared_barrier)
     return RealTimeNMPC(config, model, **options)

@@ -17,7 +17,7 @@ from paper_repro.problem.scan import ScanLayout
 # --- the linearisation -------------------------------------------------------------------------
 
 def linearisation(ocp: OCP, scan: ScanLayout | None = None,
-                  values_only: bool = False) -> ca.Function:
+                  values_only: bool = False, shared_barrier: bool = False) -> ca.Function:
     """CasADi function giving every block of the Gauss-Newton QP at the current iterate.
 
     Inputs: x0 (n_x), X (n_x × N: x_1..x_N), U (n_u × N), A (n_a × N+1: a at each stage),
@@ -29,17 +29,24 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
       cost: the objective of (21) at the iterate (the value whose gradient is q).
     ``values_only``: a function of the same inputs giving only (cost, gap, eq), what the line
     search needs at a trial point (no derivative is built).
+
+    ``shared_barrier``: the barrier β of every slot, and its gradient in y, is one function
+    evaluated for all stages at once (a loop in the generated C), and each stage reads its
+    value and gradient: β_j + ∂β/∂y·(h(x) − y_j), exact in value and first derivative, all the
+    Gauss-Newton model needs. The stage's code then does not grow with the scan's capacity;
+    only the barrier's does, once. ``False``: β is written out inside each stage's
+    expression (its value and derivatives expanded there).
     """
     scan = scan or ocp.scan
     n, nx, nu, ns = ocp.horizon, ocp.nx, ocp.nu, scan.slots
     f, h = ocp.f, ocp.h
-    na = ocp.na
+    na, ny = ocp.na, ocp.ny
 
     # Barrier of every region slot, as a function of y and the packed parameters.
-    yt = ca.SX.sym("y_t", ocp.ny)
+    yt = ca.SX.sym("y_t", ny)
     scan_params, beta_slots, active = scan.barriers()
     params = ca.vertcat(yt, scan_params)
-    y = ca.SX.sym("y", ocp.ny)
+    y = ca.SX.sym("y", ny)
     # β at τ s after the scan (moving regions); static, τ does not enter (the paper's C).
     tau = ca.SX.sym("tau")
     if scan.moving:
@@ -53,6 +60,18 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
         if not scan.moving:
             return beta_fn(yy, pp)
         return (beta_a_fn if at_equilibrium else beta_fn)(yy, pp, when)
+
+    # With a shared barrier, β reaches a stage as inputs: its value b (ns,), its gradient
+    # db (ns × p) and the output y_ref it was evaluated at.
+    def stage_beta(yy, name):
+        """β at yy inside a stage, and the stage's extra inputs."""
+        if not shared_barrier:
+            return None, []
+        b = ca.SX.sym(f"b_{name}", ns)
+        if values_only:
+            return b, [b]
+        db, ref = ca.SX.sym(f"db_{name}", ns, ny), ca.SX.sym(f"y_{name}", ny)
+        return b + ca.mtimes(db, yy - ref), [b, db, ref]
 
     def terms(residual, penalties, v):
         """The stage's cost ‖r‖² + μ Σ active·F(g) and, unless ``values_only``, its exact
@@ -82,8 +101,9 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
     u = ca.SX.sym("u", nu)
     v0 = ca.vertcat(a, u)
     x_a, u_a = ocp.equilibrium(a)
-    phi0 = ca.vertcat(f(x0, u), a, beta(h(x0), params))
-    stage0 = ca.Function("stage0", [x0, a, u, params],
+    b0 = ca.SX.sym("b_0", ns)  # β(y_0), a constant of the stage: x0 is known
+    phi0 = ca.vertcat(f(x0, u), a, b0 if shared_barrier else beta(h(x0), params))
+    stage0 = ca.Function("stage0", [x0, a, u, params] + ([b0] if shared_barrier else []),
                          terms(ocp.tracking_residual(x0, u, x_a, u_a), [], v0)
                          + dynamics(phi0, v0))
 
@@ -91,12 +111,14 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
     x = ca.SX.sym("x", nx)
     s = ca.SX.sym("s", ns)
     vj = ca.vertcat(x, a, s, u)
-    bj = beta(h(x), params, tau)  # stage j: τ = j·h
+    bj, extra_j = stage_beta(h(x), "j")
+    if bj is None:
+        bj = beta(h(x), params, tau)  # stage j: τ = j·h
     gj = [(ocp.violation(s[i], bj[i]), active[i]) for i in range(ns)]
     phij = ca.vertcat(f(x, u), a, bj)
     # The stage also hands on β(y_j), the next stage's s_{j+1}: each β is evaluated once, at
     # its own stage (with its gradient), rather than again, alone, at the next one.
-    stage = ca.Function("stage", [s, x, a, u, params, tau],
+    stage = ca.Function("stage", [s, x, a, u, params, tau] + extra_j,
                         [bj, *terms(ocp.tracking_residual(x, u, x_a, u_a), gj, vj),
                          *dynamics(phij, vj)])
 
@@ -104,14 +126,17 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
     # x_a = f(x_a, u_a) without a parametrisation).
     vn = ca.vertcat(x, a, s)
     y_a = h(x_a)
-    bn, ba = beta(h(x), params, tau), beta(y_a, params, tau + ocp.step, at_equilibrium=True)
+    bn, extra_n = stage_beta(h(x), "n")
+    ba, extra_a = stage_beta(y_a, "a")
+    if bn is None:
+        bn, ba = beta(h(x), params, tau), beta(y_a, params, tau + ocp.step, at_equilibrium=True)
     gn_terms = []
     for i in range(ns):
         gn_terms += [(ocp.violation(s[i], bn[i]), active[i]),
                      (ocp.violation(bn[i], ba[i]), active[i]),
                      (ocp.equilibrium_violation(ba[i]), active[i])]
     eq_res = ca.vertcat(x - x_a, ocp.equilibrium_rows(a))
-    stage_n = ca.Function("stage_n", [x, a, s, params, tau],
+    stage_n = ca.Function("stage_n", [x, a, s, params, tau] + extra_n + extra_a,
                           terms(ocp.offset_residual(y_a, yt), gn_terms, vn)
                           + ([] if values_only else [ca.vec(ca.jacobian(eq_res, vn))])
                           + [eq_res])
@@ -122,13 +147,41 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
     U = ca.MX.sym("U", nu, n)
     A = ca.MX.sym("A", na, n + 1)
     P = ca.MX.sym("p", params.shape[0])
-    out0 = stage0(X0, A[:, 0], U[:, 0], P)
+    times = ca.DM(np.arange(1, n) * ocp.step).T  # τ_j = j·h of stages 1..N−1
+    shared_j = shared_n = shared_a = []
+    if shared_barrier:
+        # β and ∂β/∂y at every stage's output, one function mapped over the horizon.
+        yb, tb = ca.SX.sym("y", ny), ca.SX.sym("tau")
+        outs_b = [beta(yb, params, tb)]
+        outs_a = [beta(yb, params, tb, at_equilibrium=True)]
+        if not values_only:
+            outs_b.append(ca.jacobian(outs_b[0], yb))
+            outs_a.append(ca.jacobian(outs_a[0], yb))
+        beta_y = ca.Function("beta_y", [yb, params, tb], outs_b)
+        beta_ya = ca.Function("beta_ya", [yb, params, tb], outs_a)
+        Y = h.map(n)(X)  # y_1..y_N
+        Bs = beta_y.map(n)(Y, ca.repmat(P, 1, n), ca.DM(np.arange(1, n + 1) * ocp.step).T)
+        Bs = Bs if isinstance(Bs, (list, tuple)) else [Bs]
+        Ya = h(ocp.equilibrium(A[:, n])[0])
+        Ba = beta_ya(Ya, P, (n + 1) * ocp.step)
+        Ba = Ba if isinstance(Ba, (list, tuple)) else [Ba]
+        b0_val = beta_y(h(X0), P, 0.0)
+        b0_val = b0_val[0] if isinstance(b0_val, (list, tuple)) else b0_val
+        if values_only:
+            shared_j, shared_n, shared_a = [Bs[0][:, :n - 1]], [Bs[0][:, n - 1]], [Ba[0]]
+        else:
+            shared_j = [Bs[0][:, :n - 1], Bs[1][:, :ny * (n - 1)], Y[:, :n - 1]]
+            shared_n = [Bs[0][:, n - 1], Bs[1][:, ny * (n - 1):], Y[:, n - 1]]
+            shared_a = [Ba[0], Ba[1], Ya]
+        out0 = stage0(X0, A[:, 0], U[:, 0], P, b0_val)
+    else:
+        out0 = stage0(X0, A[:, 0], U[:, 0], P)
     # Stages 1..N−1 in turn, each s_j the β(y_{j−1}) of the stage before (stage 0's from φ_0).
     mid = stage.mapaccum("mid", n - 1, [0], [0])
-    times = ca.DM(np.arange(1, n) * ocp.step).T  # τ_j = j·h of stages 1..N−1
     outm = mid(out0[-1][nx + na:], X[:, : n - 1], A[:, 1:n], U[:, 1:], ca.repmat(P, 1, n - 1),
-               times)
-    outn = stage_n(X[:, n - 1], A[:, n], outm[0][:, n - 2], P, n * ocp.step)
+               times, *shared_j)
+    outn = stage_n(X[:, n - 1], A[:, n], outm[0][:, n - 2], P, n * ocp.step, *shared_n,
+                   *shared_a)
     outm = outm[1:]
     cost = out0[0] + ca.sum2(outm[0]) + outn[0]
     # Gap residuals φ(z_j, u_j) − z_{j+1}. The iterate's s_{j+1} is always β(y_j) itself (it
@@ -138,7 +191,8 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
     gaps = ca.vertcat(*[ca.vertcat(phis[:nx, j] - X[:, j], phis[nx:nx + na, j] - A[:, j + 1],
                                    zero_s)
                         for j in range(n)])
-    name = f"rti_{'values' if values_only else 'linearisation'}_{ocp.model.name}"
+    name = (f"rti_{'values' if values_only else 'linearisation'}_{ocp.model.name}"
+            + ("_shared" if shared_barrier else ""))
     if values_only:
         outs, names = [cost, gaps, outn[-1]], ["cost", "gap", "eq"]
     else:
@@ -183,19 +237,26 @@ class LinearisationLadder:
     values : also build each rung's values-only function (what the line search evaluates);
         without a line search it is never called, and not compiling it halves the first
         build on a new machine.
+    shared_barrier : the barrier evaluated once for all stages (see :func:`linearisation`):
+        a third of the C to compile at the largest capacity, the same numbers to rounding.
 
     Attributes
     ----------
     rungs : [:class:`Rung`], by increasing capacity.  native : compiled or not.
     """
 
-    def __init__(self, ocp: OCP, capacities=(), compile: bool = True, values: bool = True):
+    def __init__(self, ocp: OCP, capacities=(), compile: bool = True, values: bool = True,
+                 shared_barrier: bool = False):
         top = ocp.scan.capacity
-        fn = linearisation(ocp)
+
+        def build(scan=None, values_only=False):
+            return linearisation(ocp, scan, values_only, shared_barrier)
+
+        fn = build()
         self.sizes = [fn.nnz_out(i) for i in range(fn.n_out())]
         self.native = bool(compile and compiler() is not None)
         if not self.native:
-            self.rungs = [Rung(ocp.scan, fn, linearisation(ocp, values_only=True)
+            self.rungs = [Rung(ocp.scan, fn, build(values_only=True)
                                if values else None)]
         else:
             caps = sorted({c for c in capacities if c < top} | {top})
@@ -205,9 +266,9 @@ class LinearisationLadder:
             for cap in caps[:1] + caps[:0:-1]:
                 scan = ocp.scan.with_capacity(cap)
                 built[cap] = Rung(
-                    scan, NativeFunction(fn if cap == top else linearisation(ocp, scan),
+                    scan, NativeFunction(fn if cap == top else build(scan),
                                          background=True),
-                    NativeFunction(linearisation(ocp, scan, values_only=True),
+                    NativeFunction(build(scan, values_only=True),
                                    background=True) if values else None)
             self.rungs = [built[cap] for cap in caps]
         self._capacities = [rung.scan.capacity for rung in self.rungs]
