@@ -1,7 +1,7 @@
 """What a new machine waits for before the first step: building a controller from an empty cache.
 
     python benchmarks/build_time.py [--configs default euclidean moving-design paper-timeline]
-                                    [--save]
+                                    [--save] [--shared-barrier]
 
 Each configuration is built in a fresh process whose compile cache (``PAPER_REPRO_CACHE``)
 is an empty folder, so gcc compiles everything, as on a new machine. The process then flies
@@ -21,6 +21,8 @@ process with the now warm cache builds it again. Columns:
 All are seconds (or MB) of wall time on this machine, measured from the process's
 ``make_controller`` call. ``--save`` writes ``figures/build_time/build_time.csv`` and its
 stamp. The times move by 15-50 % on a shared machine; the ratio cold/warm is the message.
+``--shared-barrier`` builds each configuration a second time with
+``SolverParams(shared_barrier=True)`` and prints both (it saves nothing).
 """
 
 from __future__ import annotations
@@ -49,13 +51,15 @@ from paper_repro import Config, simulate
 from paper_repro.presets import preset
 from paper_repro.solvers.factory import make_controller
 
-name = sys.argv[1]
+name, shared = sys.argv[1], sys.argv[2] == "shared"
 cfg = Config()
 if name == "euclidean":
     cfg = dataclasses.replace(cfg, distance=dataclasses.replace(cfg.distance,
                                                                 metric="euclidean"))
 elif name != "default":
     cfg = preset(name)
+if shared:
+    cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, shared_barrier=True))
 start = time.perf_counter()
 ctl = make_controller(cfg)
 controller = time.perf_counter() - start
@@ -70,10 +74,12 @@ print(json.dumps({"controller_s": controller, "first_step_s": first, "all_built_
 """
 
 
-def measure(name: str, cache: Path) -> dict:
-    """Build configuration ``name`` in a new process whose compile cache is ``cache``."""
+def measure(name: str, cache: Path, shared: bool = False) -> dict:
+    """Build configuration ``name`` (``shared``: with the shared barrier) in a new process
+    whose compile cache is ``cache``."""
     env = {**os.environ, "PAPER_REPRO_CACHE": str(cache)}
-    out = subprocess.run([sys.executable, "-c", _CHILD, name], env=env, capture_output=True,
+    out = subprocess.run([sys.executable, "-c", _CHILD, name, "shared" if shared else "inlined"],
+                         env=env, capture_output=True,
                          text=True, check=False)
     if out.returncode:
         raise RuntimeError(f"building {name!r} failed:\n{out.stderr[-2000:]}")
@@ -85,14 +91,20 @@ def main() -> None:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--configs", nargs="+", choices=CONFIGS, default=list(CONFIGS))
     parser.add_argument("--save", action="store_true")
+    parser.add_argument("--shared-barrier", action="store_true")
     args = parser.parse_args()
+    if args.save and args.shared_barrier:
+        parser.error("--save writes the default build's table: it takes no --shared-barrier")
     rows = []
-    for name in args.configs:
+    variants = [(n, s) for n in args.configs for s in ((False, True) if args.shared_barrier
+                                                        else (False,))]
+    for name, shared in variants:
         with tempfile.TemporaryDirectory(prefix="build_time_") as tmp:
-            cold = measure(name, Path(tmp))
-            warm = measure(name, Path(tmp))
+            cold = measure(name, Path(tmp), shared)
+            warm = measure(name, Path(tmp), shared)
             libraries = len(list(Path(tmp).glob("*.so")))
-        rows.append({"configuration": name, "libraries": libraries,
+        rows.append({"configuration": name + (" (shared barrier)" if shared else ""),
+                     "libraries": libraries,
                      "source_MB": round(cold["source_MB"], 2),
                      "controller_s": round(cold["controller_s"], 1),
                      "first_step_s": round(cold["first_step_s"], 1),
