@@ -147,7 +147,8 @@ _BUILDERS: dict[int, ThreadPoolExecutor] = {}
 """One pool of compiler threads per process (a forked child starts its own)."""
 
 
-def build_in_background(name: str, source: bytes, key_extra: bytes = b"") -> Future:
+def build_in_background(name: str, source: bytes, key_extra: bytes = b"",
+                        flags: tuple[str, ...] = ()) -> Future:
     """:func:`build_library` in a pool of :func:`build_jobs` threads; the future's result is
     the library's path. The threads only wait for gcc, so they run in parallel. A process that
     ends waits for the builds it started: what it compiled stays in the cache."""
@@ -155,7 +156,7 @@ def build_in_background(name: str, source: bytes, key_extra: bytes = b"") -> Fut
     if pool is None:
         pool = _BUILDERS[os.getpid()] = ThreadPoolExecutor(build_jobs(),
                                                            thread_name_prefix="gcc")
-    return pool.submit(build_library, name, source, key_extra)
+    return pool.submit(build_library, name, source, key_extra, flags)
 
 
 class DamagedLibraryWarning(UserWarning):

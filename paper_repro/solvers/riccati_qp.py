@@ -49,6 +49,7 @@ from importlib import resources
 
 import numpy as np
 
+from paper_repro._native import build_in_background as _native_build_in_background
 from paper_repro._native import load_library
 
 _D = ctypes.POINTER(ctypes.c_double)
@@ -80,15 +81,30 @@ def _specialised_sizes(nx, nu) -> tuple[int, int] | None:
     return max(set(pairs), key=pairs.count) if pairs else None
 
 
+def _source() -> bytes:
+    return resources.files("paper_repro.solvers").joinpath("_riccati_qp.c").read_bytes()
+
+
+def _flags(sizes: tuple[int, int, int] | None) -> tuple[str, ...]:
+    return () if sizes is None else (f"-DSQP_NX={sizes[0]}", f"-DSQP_NU={sizes[1]}",
+                                     f"-DSQP_NC={sizes[2]}")
+
+
+def build_in_background(nx, nu, nc: int):
+    """Start compiling the library a :class:`StageQP` of these sizes loads (its default,
+    specialised kernels), in the background (:func:`~paper_repro._native.build_in_background`);
+    the future of its path. A controller starts it first, then generates its linearisations
+    while gcc works."""
+    sizes = _specialised_sizes(np.asarray(nx), np.asarray(nu))
+    return _native_build_in_background(
+        "stage_qp", _source(), flags=_flags(None if sizes is None else (*sizes, int(nc))))
+
+
 def _library(sizes: tuple[int, int, int] | None = None):
     """The compiled solver; with ``sizes`` = (a, b, c), its stage kernels are also
     instantiated for nx_j = nx_{j+1} = a, nu_j = b, and the interior point's Schur complement
     for c terminal rows (one library per triple, cached like the others)."""
-    flags = () if sizes is None else (f"-DSQP_NX={sizes[0]}", f"-DSQP_NU={sizes[1]}",
-                                      f"-DSQP_NC={sizes[2]}")
-    lib = load_library(
-        "stage_qp", resources.files("paper_repro.solvers").joinpath("_riccati_qp.c").read_bytes(),
-        flags=flags)
+    lib = load_library("stage_qp", _source(), flags=_flags(sizes))
     lib.stage_qp_workspace.restype = ctypes.c_size_t
     lib.stage_qp_workspace.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p,
                                        ctypes.c_int]

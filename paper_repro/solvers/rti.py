@@ -44,13 +44,14 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 
-from paper_repro._native import NativeFunction
+from paper_repro._native import NativeFunction, compiler
 from paper_repro.config import QP_SOLVERS, Config
 from paper_repro.problem.ocp import OCP, NMPCSolution
 from paper_repro.problem.scan import check_visible
 from paper_repro.solvers.linearisation import LinearisationLadder, QPLayout
 from paper_repro.solvers.relaxed_qp import RelaxedQP
 from paper_repro.solvers.riccati_qp import BoundStageQP, StageQP
+from paper_repro.solvers.riccati_qp import build_in_background as build_qp_library
 from paper_repro.validation import as_vector
 from paper_repro.vehicles.base import VehicleModel
 
@@ -148,7 +149,10 @@ class RealTimeNMPC:
         if line_search is None:
             line_search = self.config.solver.line_search
         self.max_iter, self.step_tol = max_iter, step_tol
-        self.layout = QPLayout.of(ocp)
+        self.layout = lay = QPLayout.of(ocp)
+        # The QP solver's library compiles while the linearisations are generated.
+        qp_library = (build_qp_library(lay.nz, [lay.nu] * lay.horizon, lay.nc)
+                      if compile and qp_solver != "hpipm" and compiler() is not None else None)
         self.cold_start = cold_start
         converge = cold_start == "converged"
         if not isinstance(shared_barrier, bool):
@@ -157,6 +161,8 @@ class RealTimeNMPC:
                                           values=line_search or converge,
                                           shared_barrier=shared_barrier)
         self.qp_solver = qp_solver if self.ladder.native else "hpipm"
+        if qp_library is not None:
+            qp_library.exception()  # built (a failure: the QP chain's own build reports it)
         bounded = np.isfinite(ocp.state_bounds[0]) | np.isfinite(ocp.state_bounds[1])
         self.qp = QPChain(self.layout, self.qp_solver,
                           RelaxedQP(self.layout, bounded) if relaxed_qp else None)
