@@ -3,10 +3,12 @@
     python benchmarks/fidelity.py                          # every window, every solver
     python benchmarks/fidelity.py --windows paper-euclidean-50 --solvers reference rti
     python benchmarks/fidelity.py --table-only             # re-print from the saved flights
+    python benchmarks/fidelity.py --windows encounter-euclidean-15s --update
 
 A *window* is a short closed loop flown by every solver from the same state: the state a
 lead-in flight (the damped real-time iteration, fixed so that the windows never move)
-reached at ``t0``: the paper mission with a region in view, the encounter, random passages
+reached at ``t0``: the paper mission with a region in view, the encounter (from 1 s after
+the region comes into view, and its first 15 s with the whole avoidance), random passages
 and the moving ``crossing``. IPOPT is the paper's solver, in two closed loops that differ
 only where it stops at its iteration limit (the Euclidean metric): ``reference`` counts that
 as a failed solve and applies the previous plan, shifted; ``reference-iterate`` applies the
@@ -19,7 +21,8 @@ the median / p99 solve time, then the ratios to the IPOPT loop that applies what
 returns. Every flight is saved in ``results/fidelity/<window>/<solver>/``
 and re-used; the flight columns go to ``figures/fidelity/fidelity.csv`` (byte-stable), the
 solve times to ``figures/fidelity/fidelity_timings.csv`` (this machine's). Flights run in
-parallel, one process per core (``--jobs``).
+parallel, one process per core (``--jobs``). ``--update`` writes the rows of the windows
+flown into the committed tables and keeps the others (their flights are the same code's).
 """
 
 from __future__ import annotations
@@ -67,6 +70,8 @@ WINDOWS = {
     "paper-smooth-250": ("paper", "mission", 7, "smooth", 250.0, 200),
     "encounter-euclidean": ("encounter", "mission", 7, "euclidean", "view", 300),
     "encounter-smooth": ("encounter", "mission", 7, "smooth", "view", 300),
+    "encounter-euclidean-15s": ("encounter", "mission", 7, "euclidean", 0.0, 1500),
+    "encounter-smooth-15s": ("encounter", "mission", 7, "smooth", 0.0, 1500),
     "passage3-euclidean": ("random", "passage", 3, "euclidean", "view", 200),
     "passage3-smooth": ("random", "passage", 3, "smooth", "view", 200),
     "passage11-euclidean": ("random", "passage", 11, "euclidean", "view", 200),
@@ -198,6 +203,8 @@ def main() -> None:
     parser.add_argument("--solvers", nargs="+", default=list(SOLVERS), choices=list(SOLVERS))
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--table-only", action="store_true")
+    parser.add_argument("--update", action="store_true",
+                        help="write the rows of --windows into the committed tables")
     args = parser.parse_args()
 
     if not args.table_only:
@@ -229,17 +236,33 @@ def main() -> None:
         ("deviation_m", "dev. m", ".3g"), ("iteration_limit", "at limit", ".0f"),
         ("median_ms", "med ms", ".3g"),
         ("p99_ms", "p99 ms", ".3g")], width=11)
-    if set(args.windows) == set(WINDOWS) and set(args.solvers) == set(SOLVERS):
-        TABLES.mkdir(parents=True, exist_ok=True)
-        flight = [c for c in table.columns if not c.endswith("_ms")]
-        table[flight].to_csv(TABLES / "fidelity.csv", index=False, float_format="%.6g")
-        table[["window", "solver", "median_ms", "p99_ms", "max_ms"]].to_csv(
-            TABLES / "fidelity_timings.csv", index=False, float_format="%.4g")
-        for window, solver in TEST_FLIGHTS:  # what tests/test_fidelity.py compares against
+    flight = [c for c in table.columns if not c.endswith("_ms")]
+    timing = ["window", "solver", "median_ms", "p99_ms", "max_ms"]
+    complete = set(args.windows) == set(WINDOWS) and set(args.solvers) == set(SOLVERS)
+    if args.update and set(args.solvers) == set(SOLVERS):
+        table = merged(table, flight, timing)
+    elif not complete:
+        return
+    TABLES.mkdir(parents=True, exist_ok=True)
+    table[flight].to_csv(TABLES / "fidelity.csv", index=False, float_format="%.6g")
+    table[timing].to_csv(TABLES / "fidelity_timings.csv", index=False, float_format="%.4g")
+    for window, solver in TEST_FLIGHTS:  # what tests/test_fidelity.py compares against
+        if window in args.windows:
             r = SimulationResult.load(OUT / window / solver)
             np.save(TABLES / f"{window}-{solver}.npy", np.hstack([r.x[:-1], r.u]))
-        stamp(TABLES, "python benchmarks/fidelity.py")
+    stamp(TABLES, "python benchmarks/fidelity.py")
 
+
+def merged(table: pd.DataFrame, flight: list[str], timing: list[str]) -> pd.DataFrame:
+    """The committed tables with the rows of ``table``'s windows replaced by ``table``'s, in
+    the order of :data:`WINDOWS` and :data:`SOLVERS`."""
+    old = pd.read_csv(TABLES / "fidelity.csv").merge(
+        pd.read_csv(TABLES / "fidelity_timings.csv"), on=["window", "solver"])
+    out = pd.concat([old[~old.window.isin(table.window)], table[flight + timing[2:]]])
+    order = {w: i for i, w in enumerate(WINDOWS)}
+    rank = {s: i for i, s in enumerate(SOLVERS)}
+    out = out.assign(_w=out.window.map(order), _s=out.solver.map(rank))
+    return out.sort_values(["_w", "_s"]).drop(columns=["_w", "_s"]).reset_index(drop=True)
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -217,8 +217,7 @@ class RealTimeNMPC:
         visible = check_visible(visible, ocp.ny)
         rung = self.ladder.for_scan(visible)
         # A rung still compiling is waited for once; the wait is not the solve's time.
-        waited = (rung.linearisation.load() if isinstance(rung.linearisation, NativeFunction)
-                  else 0.0)
+        waited = sum(fn.load() for fn in rung[1:] if isinstance(fn, NativeFunction))
         params = np.concatenate([target, self.ladder.pack(visible, ocp.output(x0), rung.scan,
                                                           velocities)])
         X, U, a = self._guess(x0, previous)
