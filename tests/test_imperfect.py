@@ -31,7 +31,7 @@ def test_an_estimate_with_latency_is_the_state_of_that_many_steps_ago():
     x = np.zeros(2)
     plant.reset(x)
     seen = []
-    for k in range(5):
+    for _ in range(5):
         seen.append(plant.measure(x))
         x = plant.step(x, np.array([1.0, -1.0]))
     # the vehicle at k is (k, −k); it is seen at k as it was at k − 2 (at rest before 0)
