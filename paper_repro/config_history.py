@@ -5,6 +5,8 @@ keeps its cache key."""
 
 from __future__ import annotations
 
+import json
+
 MOVED = {
     ("nmpc", "solver"): ("solver", "nlp_solver"),
     ("nmpc", "sqp_iterations"): ("solver", "sqp_iterations"),
@@ -52,12 +54,19 @@ def without_added(data: dict, defaults: dict) -> dict:
             # The settings added to the part later do not count: at its other defaults the
             # part flies as before, whatever they hold (the guide off ignores its filter).
             later = {n for p, n in ADDED if p == part and n is not None}
-            if part in data and ({k: v for k, v in data[part].items() if k not in later}
-                                 == {k: v for k, v in defaults[part].items() if k not in later}):
+            if part in data and (_plain({k: v for k, v in data[part].items() if k not in later})
+                                 == _plain({k: v for k, v in defaults[part].items()
+                                            if k not in later})):
                 del data[part]
         elif isinstance(data.get(part), dict) and data[part].get(name, None) == neutral:
             del data[part][name]
     return data
+
+
+def _plain(values: dict) -> dict:
+    """``values`` as JSON holds them (a tuple is a list), so that a part read from a
+    ``config.json`` compares equal to the same part of a :class:`Config`."""
+    return json.loads(json.dumps(values, default=str))
 
 
 def moved_settings(data: dict) -> dict:
