@@ -38,15 +38,18 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
     expression (its value and derivatives expanded there).
     """
     scan = scan or ocp.scan
-    n, nx, nu, ns = ocp.horizon, ocp.nx, ocp.nu, scan.slots
-    f, h = ocp.f, ocp.h
-    na, ny = ocp.na, ocp.ny
+    yt, params, active, beta = _barriers(ocp, scan)
+    stages = _stages(ocp, scan, yt, params, active, beta, values_only, shared_barrier)
+    return _horizon(ocp, scan, stages, params, beta, values_only, shared_barrier)
 
-    # Barrier of every region slot, as a function of y and the packed parameters.
-    yt = ca.SX.sym("y_t", ny)
+
+def _barriers(ocp: OCP, scan: ScanLayout):
+    """The symbols and the barrier of every region slot: (y_t, the parameter column (y_t, then
+    the scan), the slots' active flags, ``beta(y, params, when=0, at_equilibrium=False)``)."""
+    yt = ca.SX.sym("y_t", ocp.ny)
     scan_params, beta_slots, active = scan.barriers()
     params = ca.vertcat(yt, scan_params)
-    y = ca.SX.sym("y", ny)
+    y = ca.SX.sym("y", ocp.ny)
     # β at τ s after the scan (moving regions); static, τ does not enter (the paper's C).
     tau = ca.SX.sym("tau")
     if scan.moving:
@@ -61,8 +64,19 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
             return beta_fn(yy, pp)
         return (beta_a_fn if at_equilibrium else beta_fn)(yy, pp, when)
 
-    # With a shared barrier, β reaches a stage as inputs: its value b (ns,), its gradient
-    # db (ns × p) and the output y_ref it was evaluated at.
+    return yt, params, active, beta
+
+
+def _stages(ocp: OCP, scan: ScanLayout, yt, params, active, beta, values_only: bool,
+            shared_barrier: bool):
+    """The three stage functions (stage 0, stages 1..N−1, stage N): each gives its cost, its
+    gradient and Gauss-Newton Hessian blocks (unless ``values_only``), the Jacobian of its
+    dynamics and the next stage's z. With ``shared_barrier`` β reaches a stage as inputs: its
+    value b (ns,), its gradient db (ns × p) and the output y_ref it was evaluated at."""
+    nx, nu, ns, na, ny = ocp.nx, ocp.nu, scan.slots, ocp.na, ocp.ny
+    f, h = ocp.f, ocp.h
+    tau = ca.SX.sym("tau")
+
     def stage_beta(yy, name):
         """β at yy inside a stage, and the stage's extra inputs."""
         if not shared_barrier:
@@ -74,26 +88,10 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
         return b + ca.mtimes(db, yy - ref), [b, db, ref]
 
     def terms(residual, penalties, v):
-        """The stage's cost ‖r‖² + μ Σ active·F(g) and, unless ``values_only``, its exact
-        gradient and Gauss-Newton Hessian (as vec(H), ∇) with respect to v."""
-        cost = ca.sumsqr(residual)
-        for g, weight in penalties:
-            cost += ocp.mu * weight * ocp.penalty(g)
-        if values_only:
-            return [cost]
-        jr = ca.jacobian(residual, v)
-        hess = 2 * ca.mtimes(jr.T, jr)
-        grad = 2 * ca.mtimes(jr.T, residual)
-        for g, weight in penalties:
-            jg = ca.jacobian(g, v)
-            d1, d2 = ocp.penalty_derivatives(g)
-            hess += ocp.mu * weight * d2 * ca.mtimes(jg.T, jg)
-            grad += ocp.mu * weight * d1 * jg.T
-        return [cost, ca.vec(hess), grad]
+        return _terms(ocp, residual, penalties, v, values_only)
 
     def dynamics(phi, v):
-        """Unless ``values_only`` the Jacobian [A_j B_j] of φ, then φ (the next stage's z)."""
-        return [phi] if values_only else [ca.vec(ca.jacobian(phi, v)), phi]
+        return _dynamics(phi, v, values_only)
 
     # Stage 0: v = (a, u); x0 is known.
     x0 = ca.SX.sym("x0", nx)
@@ -140,8 +138,42 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
                           terms(ocp.offset_residual(y_a, yt), gn_terms, vn)
                           + ([] if values_only else [ca.vec(ca.jacobian(eq_res, vn))])
                           + [eq_res])
+    return stage0, stage, stage_n
 
-    # Whole horizon.
+
+def _terms(ocp: OCP, residual, penalties, v, values_only: bool) -> list:
+    """A stage's cost ‖r‖² + μ Σ active·F(g) and, unless ``values_only``, its exact gradient
+    and Gauss-Newton Hessian (as vec(H), ∇) with respect to v; ``penalties`` are (g, active)
+    pairs."""
+    cost = ca.sumsqr(residual)
+    for g, weight in penalties:
+        cost += ocp.mu * weight * ocp.penalty(g)
+    if values_only:
+        return [cost]
+    jr = ca.jacobian(residual, v)
+    hess = 2 * ca.mtimes(jr.T, jr)
+    grad = 2 * ca.mtimes(jr.T, residual)
+    for g, weight in penalties:
+        jg = ca.jacobian(g, v)
+        d1, d2 = ocp.penalty_derivatives(g)
+        hess += ocp.mu * weight * d2 * ca.mtimes(jg.T, jg)
+        grad += ocp.mu * weight * d1 * jg.T
+    return [cost, ca.vec(hess), grad]
+
+
+def _dynamics(phi, v, values_only: bool) -> list:
+    """Unless ``values_only`` the Jacobian [A_j B_j] of φ, then φ (the next stage's z)."""
+    return [phi] if values_only else [ca.vec(ca.jacobian(phi, v)), phi]
+
+
+def _horizon(ocp: OCP, scan: ScanLayout, stages, params, beta, values_only: bool,
+             shared_barrier: bool) -> ca.Function:
+    """The stages chained over the horizon (stages 1..N−1 as one ``mapaccum``, a loop in C),
+    with the shared barrier's values mapped over the horizon when it is on; the outputs of
+    :func:`linearisation`."""
+    stage0, stage, stage_n = stages
+    n, nx, nu, ns, na, ny = ocp.horizon, ocp.nx, ocp.nu, scan.slots, ocp.na, ocp.ny
+    h = ocp.h
     X0 = ca.MX.sym("x0", nx)
     X = ca.MX.sym("X", nx, n)
     U = ca.MX.sym("U", nu, n)
