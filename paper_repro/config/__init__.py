@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from paper_repro.config.problem import (
+    COLD_STARTS,
     PREDICTIONS,
     QP_SOLVERS,
     BarrierParams,
@@ -41,9 +42,9 @@ from paper_repro.config.world import (
 )
 from paper_repro.config_history import moved_settings, with_added, without_added
 
-__all__ = ["BarrierParams", "Config", "DistanceParams", "ESTIMATES", "GUIDES", "GuideParams",
-           "NMPCParams", "PLANT_SIMULATORS", "PlantParams", "PREDICTIONS", "QP_SOLVERS",
-           "QuadrotorParams", "relaxed_box", "SensorParams", "SimulationParams",
+__all__ = ["BarrierParams", "COLD_STARTS", "Config", "DistanceParams", "ESTIMATES", "GUIDES",
+           "GuideParams", "NMPCParams", "PLANT_SIMULATORS", "PlantParams", "PREDICTIONS",
+           "QP_SOLVERS", "QuadrotorParams", "relaxed_box", "SensorParams", "SimulationParams",
            "SolverParams", "TrackerParams", "TURBULENCE"]
 
 

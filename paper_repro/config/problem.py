@@ -298,6 +298,9 @@ def relaxed_box(lower, upper, lam: float) -> tuple[np.ndarray, np.ndarray]:
     return mid - lam * half, mid + lam * half
 
 
+COLD_STARTS = ("rti", "converged")
+"""How the ``rti`` solver's first solve of a flight iterates (``SolverParams.cold_start``)."""
+
 QP_SOLVERS = ("riccati", "riccati-ipm", "hpipm")
 """The QP chains of the ``rti`` solver (``SolverParams.qp_solver``,
 :class:`paper_repro.solvers.rti.QPChain`)."""
@@ -357,7 +360,7 @@ class SolverParams:
     def __post_init__(self):
         require_choice("nlp_solver", self.nlp_solver, ("rti", "reference"))
         require_choice("qp_solver", self.qp_solver, QP_SOLVERS)
-        require_choice("cold_start", self.cold_start, ("rti", "converged"))
+        require_choice("cold_start", self.cold_start, COLD_STARTS)
         for name in ("line_search", "relaxed_qp", "shared_barrier"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")

@@ -29,7 +29,8 @@ Four parts, one job each:
   arithmetic; :meth:`QPLayout.dense` assembles the dense QP, for tests and for HPIPM).
 * :class:`QPChain`: the QP backends, the Riccati solver
   (:class:`~paper_repro.solvers.riccati_qp.StageQP`, warm-started with the previous active
-  set) first and HPIPM as its fallback, with counters.
+  set) first and HPIPM as its fallback, with counters; optionally, as the last resort, the
+  same QP with soft state bounds (:class:`~paper_repro.solvers.relaxed_qp.RelaxedQP`).
 
 :class:`RealTimeNMPC` is the thin SQP loop that joins them: up to ``max_iter`` steps per
 sampling instant, stopping early when the step is small, each step shortened by
@@ -45,7 +46,7 @@ import casadi as ca
 import numpy as np
 
 from paper_repro._native import NativeFunction, compiler
-from paper_repro.config import QP_SOLVERS, Config
+from paper_repro.config import COLD_STARTS, QP_SOLVERS, Config
 from paper_repro.problem.ocp import OCP, NMPCSolution
 from paper_repro.problem.scan import check_visible
 from paper_repro.solvers.linearisation import LinearisationLadder, QPLayout
@@ -54,9 +55,6 @@ from paper_repro.solvers.riccati_qp import BoundStageQP, StageQP
 from paper_repro.solvers.riccati_qp import build_in_background as build_qp_library
 from paper_repro.validation import as_vector
 from paper_repro.vehicles.base import VehicleModel
-
-COLD_STARTS = ("rti", "converged")
-"""How a solve without a previous plan iterates (``RealTimeNMPC(cold_start=...)``)."""
 
 COLD_START_ITERATIONS = 100
 """The most damped SQP steps a ``"converged"`` cold start takes."""
