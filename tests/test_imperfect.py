@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from paper_repro.config import Config, PlantParams, SimulationParams
-from paper_repro.sim.imperfect import DelayedInput, EstimatedState
+from paper_repro.sim.imperfect import DelayedInput, EstimatedState, LatencyCompensation
 from paper_repro.sim.loop import simulate
 from paper_repro.sim.plant import QuadrotorPlant, plant_for, wind_of
 from paper_repro.vehicles.quadrotor import quadrotor_model
@@ -71,6 +71,9 @@ def test_a_delayed_input_arrives_that_many_steps_late_after_the_rest_input():
     (lambda: PlantParams(estimation="gps"), "estimation"),
     (lambda: PlantParams(turbulence="strong"), "turbulence"),
     (lambda: PlantParams(delay_steps=-1), "delay_steps"),
+    (lambda: PlantParams(compensate_latency=True), "compensate_latency needs a latency"),
+    (lambda: PlantParams(delay_steps=1, compensate_latency=1), "compensate_latency must be"),
+    (lambda: LatencyCompensation(Recorder(), Recorder(), 0, [0.0]), "steps"),
     (lambda: PlantParams(simulator="rotorpy", wind=(1.0, float("nan"), 0.0),
                          rotor_drag=1e-4), "wind must be 3 finite numbers"),
 ])
@@ -92,6 +95,34 @@ def test_the_plant_settings_build_their_wrappers():
     assert isinstance(plant, DelayedInput) and plant.delay == 2
     assert isinstance(plant.plant, EstimatedState) and plant.plant.latency == 1
     assert isinstance(plant.plant.plant, QuadrotorPlant)
+
+
+@pytest.mark.parametrize("latency, delay", [(0, 1), (2, 0), (1, 2)])
+def test_the_compensated_state_is_the_one_the_next_input_meets(latency, delay):
+    """With the nominal model as the plant and no noise, the prediction over L + d steps is
+    exact: the state given at step k is the true state at step k + d, when the input computed
+    from it starts to act (before the flight, the vehicle rests with the rest input)."""
+    x0, rest = np.zeros(2), np.zeros(2)  # x + 0 = x: the rest input of this model
+    plant = EstimatedState(Recorder(), np.zeros(2), latency)
+    if delay:
+        plant = DelayedInput(plant, delay, rest)
+    plant = LatencyCompensation(plant, Recorder(), latency + delay, rest)
+    plant.reset(x0)
+    rng = np.random.default_rng(1)
+    x, given, truth = x0, [], [x0]
+    for _ in range(12):
+        given.append(plant.measure(x))
+        x = plant.step(x, rng.normal(size=2))
+        truth.append(x)
+    for k in range(len(given) - delay):
+        np.testing.assert_allclose(given[k], truth[k + delay], atol=1e-12)
+
+
+def test_the_compensation_wraps_the_plant_and_predicts_with_the_nominal_model():
+    cfg = Config(plant=PlantParams(estimation="vio", delay_steps=1, compensate_latency=True))
+    plant = plant_for(quadrotor_model(), cfg)
+    assert isinstance(plant, LatencyCompensation) and plant.steps == 3 + 1
+    assert isinstance(plant.nominal, QuadrotorPlant) and isinstance(plant.plant, DelayedInput)
 
 
 def test_another_vehicle_cannot_fly_rotorpy():

@@ -7,6 +7,7 @@ import pytest
 
 from paper_repro import Config, make_scene
 from paper_repro.analysis.metrics import (
+    body_rates,
     cbf_condition_share,
     chattering_metrics,
     input_spectrum,
@@ -278,3 +279,47 @@ def test_encounters_count_the_runs_that_came_within_the_sensor_range():
 
     assert encounters([0.1, 2.99, 3.0, 7.5, np.nan], 3.0) == 2
     assert encounters([], 3.0) == 0
+
+
+def _rotation(phi, theta, psi):
+    """R = Rz(ψ)Ry(θ)Rx(φ)."""
+    c, s = np.cos, np.sin
+    rz = np.array([[c(psi), -s(psi), 0], [s(psi), c(psi), 0], [0, 0, 1]])
+    ry = np.array([[c(theta), 0, s(theta)], [0, 1, 0], [-s(theta), 0, c(theta)]])
+    rx = np.array([[1, 0, 0], [0, c(phi), -s(phi)], [0, s(phi), c(phi)]])
+    return rz @ ry @ rx
+
+
+def test_body_rates_are_the_rotation_s_angular_velocity_by_finite_differences():
+    """ω̂ = Rᵀ Ṙ, with Ṙ by central differences along the Euler angles' rates."""
+    rng = np.random.default_rng(3)
+    x = np.zeros((5, 12))
+    x[:, 3:6] = rng.uniform(-0.5, 0.5, (5, 3))
+    x[:, 9:12] = rng.normal(size=(5, 3))
+    h = 1e-6
+    for row, omega in zip(x, body_rates(x), strict=True):
+        r = _rotation(*row[3:6])
+        dr = (_rotation(*(row[3:6] + h * row[9:12]))
+              - _rotation(*(row[3:6] - h * row[9:12]))) / (2 * h)
+        skew = r.T @ dr
+        np.testing.assert_allclose([skew[2, 1], skew[0, 2], skew[1, 0]], omega, atol=1e-8)
+    level = np.zeros((1, 12))
+    level[0, 9:12] = (0.1, -0.2, 0.3)  # level flight: the body rates are the Euler rates
+    np.testing.assert_allclose(body_rates(level)[0], level[0, 9:12])
+
+
+def test_plant_columns_count_saturation_margin_and_slow_calls():
+    from paper_repro.analysis.metrics import plant_columns
+
+    cfg = Config()
+    k = 10
+    u = np.full((k, 4), 5.0)
+    u[2, 0], u[3, 1] = 0.0, 12.0  # two steps with a rotor at a bound of 𝒰
+    clearance = np.full(k + 1, 3.0)
+    clearance[4:7] = 1.0  # three samples inside the margin √(2·1 m²) = 1.41 m
+    result = SimpleNamespace(config=cfg, u=u, x=np.zeros((k + 1, 12)), clearance=clearance,
+                             solve_time=np.r_[np.full(k - 1, 1e-3), 0.02])
+    cols = plant_columns(result)
+    assert cols["saturation_time_s"] == pytest.approx(2 * cfg.nmpc.ts)
+    assert cols["margin_time_s"] == pytest.approx(3 * cfg.nmpc.ts)
+    assert cols["calls_over_ts"] == 1 and cols["body_rate_rms_rad_s"] == 0.0

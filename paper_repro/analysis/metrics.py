@@ -251,71 +251,134 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
     * thrust steps at changes of the visible set (:func:`scan_change_steps`): ``scan_changes``,
       the median |Δu| there and within :data:`SCAN_NEIGHBOURHOOD` steps around them, and the
       share of changes with a step above :data:`SCAN_STEP_THRESHOLD`.
+    * a flight against another plant, or with a latency (``config.plant``), adds
+      :func:`plant_columns`.
     """
+    row = {**_identity(result), **_outcome(result), **_solver_columns(result),
+           **_hazard_columns(result), **_input_columns(result, cutoff_hz),
+           **_scan_change_columns(result)}
+    wall = float(result.meta.get("wall_time_s", float("nan")))
+    row.update(wall_time_s=wall,
+               steps_per_s=result.steps / wall if wall > 0 else float("nan"))
+    if result.config.plant.simulator != "ours" or result.config.plant.latency_steps():
+        row.update(plant_columns(result))
+    return row
+
+
+def _identity(result) -> dict:
+    """Which run: its scene, metric, scenario, solver and length."""
     cfg = result.config
-    ts = cfg.nmpc.ts
-    solve_ms = np.asarray(result.solve_time, float) * 1e3
-    chat = chattering_metrics(result.u, ts, cutoff_hz)
+    return {"run": f"{result.scene.name}/{cfg.distance.metric}",
+            "metric": cfg.distance.metric,
+            "scenario": cfg.simulation.scenario,
+            "scene": result.scene.name,
+            "scene_fingerprint": result.scene.fingerprint(),
+            "kind": cfg.simulation.kind,
+            "solver": cfg.solver.nlp_solver,
+            "steps": int(result.steps),
+            "simulated_time_s": result.steps * cfg.nmpc.ts}
+
+
+def _outcome(result) -> dict:
+    """How the run ended, when, and how close it came."""
+    ts = result.config.nmpc.ts
     reached = np.asarray(result.reached)
-    simulated = result.steps * ts
-    all_reached = bool(np.all(reached >= 0))
     completed = result.outcome == "completed"
     min_clearance = float(np.min(result.clearance))
-    wall = float(result.meta.get("wall_time_s", float("nan")))
-    hazards = result.meta.get("hazards") or {}
-    at_changes, around = scan_change_steps(result)
+    return {"outcome": result.outcome,
+            "completed": completed,
+            "targets_reached": f"{int(np.sum(reached >= 0))}/{len(reached)}",
+            "time_to_complete_s": result.steps * ts if completed else float("nan"),
+            "mission_time_s": (float(reached[-1] * ts) if bool(np.all(reached >= 0))
+                               else float("nan")),
+            "stalled": result.outcome == "stalled",
+            "collision": min_clearance < COLLISION_CLEARANCE,
+            "min_clearance_m": min_clearance}
+
+
+def _solver_columns(result) -> dict:
+    """Solve times (ms), iterations, failures, faults and the steps outside 𝒳."""
+    solve_ms = np.asarray(result.solve_time, float) * 1e3
     x = np.asarray(result.x, float)[1:]  # the states reached, not the start
-    lower, upper = np.asarray(cfg.nmpc.state_lower), np.asarray(cfg.nmpc.state_upper)
+    nmpc = result.config.nmpc
+    lower, upper = np.asarray(nmpc.state_lower), np.asarray(nmpc.state_upper)
     outside = (float(np.sum(np.any((x < lower) | (x > upper), axis=1)))
                if x.ndim == 2 and x.shape[1] == lower.size else float("nan"))
-    return {
-        "run": f"{result.scene.name}/{cfg.distance.metric}",
-        "metric": cfg.distance.metric,
-        "scenario": cfg.simulation.scenario,
-        "scene": result.scene.name,
-        "scene_fingerprint": result.scene.fingerprint(),
-        "kind": cfg.simulation.kind,
-        "solver": cfg.solver.nlp_solver,
-        "steps": int(result.steps),
-        "simulated_time_s": simulated,
-        "outcome": result.outcome,
-        "completed": completed,
-        "targets_reached": f"{int(np.sum(reached >= 0))}/{len(reached)}",
-        "time_to_complete_s": simulated if completed else float("nan"),
-        "mission_time_s": float(reached[-1] * ts) if all_reached else float("nan"),
-        "stalled": result.outcome == "stalled",
-        "collision": min_clearance < COLLISION_CLEARANCE,
-        "min_clearance_m": min_clearance,
-        "solve_mean_ms": float(np.mean(solve_ms)),
-        "solve_median_ms": float(np.median(solve_ms)),
-        "solve_p95_ms": float(np.percentile(solve_ms, 95)),
-        "solve_p99_ms": float(np.percentile(solve_ms, 99)),
-        "solve_max_ms": float(np.max(solve_ms)),
-        "iterations_mean": float(np.mean(result.iterations)),
-        "iterations_max": int(np.max(result.iterations)),
-        "failed_solves": int(np.sum(~np.asarray(result.success, bool))),
-        "dropped_points": int(np.sum(result.dropped_points)),
-        "fault_steps": int(np.isin(result.status, ("state_fault", "solve_error")).sum()),
-        "steps_outside_state_box": outside,
-        "start_unsafe": bool(hazards.get("start_unsafe", False)),
-        "target_unsafe": bool(any(hazards.get("targets_unsafe") or [])),
-        "target_unreachable": bool(any(hazards.get("targets_unreachable") or [])),
-        "tv_u_N": chat["total_variation"],
-        "tv_u_rate_N_per_s": chat["total_variation"] / simulated,
-        "max_abs_du_N": chat["max_abs_du"],
-        "hf_energy_fraction": chat["hf_energy_fraction"],
-        "hf_rms_N": chat["hf_rms"],
-        "du_sign_changes": chat["du_sign_changes"],
-        "cutoff_hz": chat["cutoff_hz"],
-        "cbf_condition_violated_share": cbf_condition_share(result),
-        "scan_changes": int(len(at_changes)),
-        "du_scan_change_median_N": _median(at_changes),
-        "du_around_changes_median_N": _median(around),
-        "scan_change_jump_share": (float(np.mean(at_changes > SCAN_STEP_THRESHOLD))
-                                   if len(at_changes) else float("nan")),
-        "wall_time_s": wall,
-        "steps_per_s": result.steps / wall if wall > 0 else float("nan"),
-    }
+    return {"solve_mean_ms": float(np.mean(solve_ms)),
+            "solve_median_ms": float(np.median(solve_ms)),
+            "solve_p95_ms": float(np.percentile(solve_ms, 95)),
+            "solve_p99_ms": float(np.percentile(solve_ms, 99)),
+            "solve_max_ms": float(np.max(solve_ms)),
+            "iterations_mean": float(np.mean(result.iterations)),
+            "iterations_max": int(np.max(result.iterations)),
+            "failed_solves": int(np.sum(~np.asarray(result.success, bool))),
+            "dropped_points": int(np.sum(result.dropped_points)),
+            "fault_steps": int(np.isin(result.status, ("state_fault", "solve_error")).sum()),
+            "steps_outside_state_box": outside}
+
+
+def _hazard_columns(result) -> dict:
+    """The set-up's hazards (``meta["hazards"]``)."""
+    hazards = result.meta.get("hazards") or {}
+    return {"start_unsafe": bool(hazards.get("start_unsafe", False)),
+            "target_unsafe": bool(any(hazards.get("targets_unsafe") or [])),
+            "target_unreachable": bool(any(hazards.get("targets_unreachable") or []))}
+
+
+def _input_columns(result, cutoff_hz: float) -> dict:
+    """Chattering of the thrusts (:func:`chattering_metrics`) and the CBF condition's share."""
+    chat = chattering_metrics(result.u, result.config.nmpc.ts, cutoff_hz)
+    return {"tv_u_N": chat["total_variation"],
+            "tv_u_rate_N_per_s": (chat["total_variation"]
+                                  / (result.steps * result.config.nmpc.ts)),
+            "max_abs_du_N": chat["max_abs_du"],
+            "hf_energy_fraction": chat["hf_energy_fraction"],
+            "hf_rms_N": chat["hf_rms"],
+            "du_sign_changes": chat["du_sign_changes"],
+            "cutoff_hz": chat["cutoff_hz"],
+            "cbf_condition_violated_share": cbf_condition_share(result)}
+
+
+def _scan_change_columns(result) -> dict:
+    """Thrust steps at changes of the visible set (:func:`scan_change_steps`)."""
+    at_changes, around = scan_change_steps(result)
+    return {"scan_changes": int(len(at_changes)),
+            "du_scan_change_median_N": _median(at_changes),
+            "du_around_changes_median_N": _median(around),
+            "scan_change_jump_share": (float(np.mean(at_changes > SCAN_STEP_THRESHOLD))
+                                       if len(at_changes) else float("nan"))}
+
+
+def plant_columns(result) -> dict:
+    """What a flight against another plant, or with a latency, adds to its row.
+
+    * ``saturation_time_s``: time with a rotor at a bound of 𝒰 (within 1 mN), s;
+    * ``body_rate_rms_rad_s``: RMS of the body rates ‖(p, q, r)‖ from the Euler angles and
+      their rates (ZYX), rad/s;
+    * ``margin_time_s``: time inside the barrier's margin, clearance below √(2·d_min) (the
+      ½d² reading of d_min), s;
+    * ``calls_over_ts``: solves longer than T_s.
+    """
+    cfg, ts = result.config, result.config.nmpc.ts
+    u = np.asarray(result.u, float)
+    lower, upper = np.asarray(cfg.nmpc.input_lower), np.asarray(cfg.nmpc.input_upper)
+    at_bound = np.any((u <= lower + 1e-3) | (u >= upper - 1e-3), axis=1)
+    margin = np.sqrt(2 * cfg.barrier.d_min)
+    return {"saturation_time_s": float(np.sum(at_bound) * ts),
+            "body_rate_rms_rad_s": float(np.sqrt(np.mean(np.sum(
+                body_rates(np.asarray(result.x, float)[1:]) ** 2, axis=1)))),
+            "margin_time_s": float(np.sum(np.asarray(result.clearance) < margin) * ts),
+            "calls_over_ts": int(np.sum(np.asarray(result.solve_time, float) > ts))}
+
+
+def body_rates(x) -> np.ndarray:
+    """(K, 3) body rates (p, q, r), rad/s, of quadrotor states x (K, 12): Euler angles
+    (φ, θ, ψ) in x[:, 3:6] and their rates in x[:, 9:12], R = Rz(ψ)Ry(θ)Rx(φ)."""
+    phi, theta = x[:, 3], x[:, 4]
+    dphi, dtheta, dpsi = x[:, 9], x[:, 10], x[:, 11]
+    return np.column_stack([dphi - dpsi * np.sin(theta),
+                            dtheta * np.cos(phi) + dpsi * np.cos(theta) * np.sin(phi),
+                            -dtheta * np.sin(phi) + dpsi * np.cos(theta) * np.cos(phi)])
 
 
 def split_timings(table, columns=TIMING_COLUMNS):

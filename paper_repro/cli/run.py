@@ -120,6 +120,9 @@ def add_plant_arguments(parser) -> None:
                                               "(default), mocap or vio (noise and latency)")
     parser.add_argument("--delay", type=non_negative_int, default=None, metavar="STEPS",
                         help="computation delay, in steps of T_s (default 0)")
+    parser.add_argument("--compensate-latency", action="store_true", default=None,
+                        help="the controller predicts the state over the estimate's latency "
+                             "and the delay with its nominal model (a remedy)")
 
 
 def add_cloud_arguments(parser) -> None:
@@ -202,7 +205,9 @@ def run_config(args) -> Config:
                     else (0.0, float(args.wind), 0.0)),
                    ("--turbulence", "plant", "turbulence", args.turbulence),
                    ("--estimation", "plant", "estimation", args.estimation),
-                   ("--delay", "plant", "delay_steps", args.delay)) if value is not None]
+                   ("--delay", "plant", "delay_steps", args.delay),
+                   ("--compensate-latency", "plant", "compensate_latency",
+                    args.compensate_latency)) if value is not None]
     return with_settings(cfg, options + list(args.settings))  # checked together: --set wins
 
 

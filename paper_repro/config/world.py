@@ -300,6 +300,11 @@ class PlantParams:
     delay_steps : computation delay, in steps of T_s (0, 1 or 2 typical): the input computed
         from the measurement at step k is applied from step k + delay_steps; hover thrust
         until then.
+    compensate_latency : ``False`` (default). ``True``: a remedy for the latency. The
+        controller is given the state its next input will meet: the measured state rolled
+        forward with the nominal model through the inputs sent over the estimate's latency
+        and the delay (:class:`~paper_repro.sim.imperfect.LatencyCompensation`). Needs a
+        latency: an estimate other than ``"perfect"`` or ``delay_steps`` above 0.
     seed : seed of the turbulence and of the estimate's noise, an integer >= 0.
     """
 
@@ -320,6 +325,7 @@ class PlantParams:
     gust_start: float = 0.0
     estimation: str = "perfect"
     delay_steps: int = 0
+    compensate_latency: bool = False
     seed: int = 0
 
     def __post_init__(self):
@@ -342,6 +348,12 @@ class PlantParams:
                 raise ValueError(f"{name} must be 3 {what}, got {value!r}")
         require_int("delay_steps", self.delay_steps, 0)
         require_int("seed", self.seed, 0)
+        if not isinstance(self.compensate_latency, bool):
+            raise ValueError(f"compensate_latency must be True or False, got "
+                             f"{self.compensate_latency!r}")
+        if self.compensate_latency and self.latency_steps() == 0:
+            raise ValueError("compensate_latency needs a latency to compensate: an estimation "
+                             "other than 'perfect' or delay_steps above 0")
         extra = self.effects()
         if self.simulator == "ours" and extra:
             raise ValueError(f"{extra[0]} is an effect our plant (the NMPC's own model) does "
@@ -354,6 +366,10 @@ class PlantParams:
         """The names of the settings that are not our plant's (off: their default)."""
         return [f.name for f in fields(self)
                 if f.name in _EFFECTS and getattr(self, f.name) != f.default]
+
+    def latency_steps(self) -> int:
+        """L + d, steps of T_s: the estimate's latency and the computation delay."""
+        return ESTIMATES[self.estimation][-1] + self.delay_steps
 
     def moving_air(self) -> bool:
         """Whether the air moves: a mean wind, turbulence or a gust."""

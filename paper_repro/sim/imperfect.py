@@ -9,8 +9,13 @@ loop does not change:
   (the time a solve and its transport take); the rest input before that. The result logs
   the input the controller computed, not the one applied.
 
+One remedy is a plant wrapper too:
+
+* :class:`LatencyCompensation`: the controller is given the state its next input will meet,
+  predicted with the nominal model over the known latency through the inputs already sent.
+
 :func:`~paper_repro.sim.plant.plant_for` builds them from ``config.plant``
-(``estimation``, ``delay_steps``).
+(``estimation``, ``delay_steps``, ``compensate_latency``).
 """
 
 from __future__ import annotations
@@ -101,3 +106,54 @@ class DelayedInput:
     def measure(self, x) -> np.ndarray:
         measure = getattr(self.plant, "measure", None)
         return measure(x) if callable(measure) else x
+
+
+class LatencyCompensation:
+    """``plant``, measured through a prediction over its known latency: a remedy.
+
+    The state measured at step k is that of step k − L (an estimate ``L`` steps late), and
+    the input computed now acts from step k + d (a delay of ``d`` steps). The inputs applied
+    in between are known: they are the last L + d inputs sent. So the measured state is rolled
+    forward through them with the nominal model, and the controller is given its prediction of
+    the state at k + d. With the nominal model as the plant and no noise, it is that state.
+
+    Parameters
+    ----------
+    plant : the plant flown (with its estimate and its delay).
+    nominal : a plant of the nominal model (``step(x, u)`` over T_s), used to predict.
+    steps : L + d, an integer >= 1.
+    rest_input : (n_u,) the input sent before the flight (the hover thrusts).
+    """
+
+    def __init__(self, plant, nominal, steps: int, rest_input):
+        if not (isinstance(steps, int) and not isinstance(steps, bool) and steps >= 1):
+            raise ValueError(f"steps must be an integer >= 1 (L + d), got {steps!r}")
+        self.plant, self.nominal, self.steps = plant, nominal, steps
+        self.rest_input = np.asarray(rest_input, float)
+        self._sent: deque = deque(maxlen=steps)
+
+    def reset(self, x0) -> None:
+        self._sent.clear()
+        self._sent.extend([self.rest_input.copy()] * self.steps)
+        if callable(getattr(self.plant, "reset", None)):
+            self.plant.reset(x0)
+
+    def step(self, x, u) -> np.ndarray:
+        """Send ``u`` and step the plant."""
+        if not self._sent:
+            self._sent.extend([self.rest_input.copy()] * self.steps)
+        self._sent.append(np.array(u, float))
+        return self.plant.step(x, u)
+
+    def measure(self, x) -> np.ndarray:
+        """The plant's measurement rolled forward through the last L + d inputs sent; a
+        non-finite measurement is handed on as it is (the loop treats it as a fault)."""
+        measure = getattr(self.plant, "measure", None)
+        m = np.array(measure(x) if callable(measure) else x, float)
+        if not np.isfinite(m).all():
+            return m
+        if not self._sent:
+            self._sent.extend([self.rest_input.copy()] * self.steps)
+        for u in self._sent:
+            m = np.asarray(self.nominal.step(m, u), float)
+        return m

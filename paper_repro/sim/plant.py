@@ -188,8 +188,11 @@ def plant_for(model: VehicleModel, config: Config, altitude: float = 2.0):
       (:class:`~paper_repro.sim.imperfect.EstimatedState`).
     * ``plant.delay_steps``: the inputs arrive late
       (:class:`~paper_repro.sim.imperfect.DelayedInput`).
+    * ``plant.compensate_latency``: the controller is given the state predicted over both
+      latencies with the nominal model
+      (:class:`~paper_repro.sim.imperfect.LatencyCompensation`).
     """
-    from paper_repro.sim.imperfect import DelayedInput, EstimatedState
+    from paper_repro.sim.imperfect import DelayedInput, EstimatedState, LatencyCompensation
 
     p, ts = config.plant, config.nmpc.ts
     quadrotor = model.name == "quadrotor"
@@ -209,8 +212,12 @@ def plant_for(model: VehicleModel, config: Config, altitude: float = 2.0):
     if p.estimation != "perfect":
         s_p, s_a, s_v, s_r, latency = ESTIMATES[p.estimation]
         plant = EstimatedState(plant, np.repeat([s_p, s_a, s_v, s_r], 3), latency, p.seed)
+    rest_input = model.rest(np.zeros(model.nx))[1]
     if p.delay_steps:
-        plant = DelayedInput(plant, p.delay_steps, model.rest(np.zeros(model.nx))[1])
+        plant = DelayedInput(plant, p.delay_steps, rest_input)
+    if p.compensate_latency:
+        nominal = QuadrotorPlant(config.quadrotor, ts) if quadrotor else ModelPlant(model, ts)
+        plant = LatencyCompensation(plant, nominal, p.latency_steps(), rest_input)
     return plant
 
 
