@@ -71,3 +71,32 @@ def test_by_setting_has_one_row_per_setting_with_intervals():
 def test_ecdf_is_monotone_and_ends_at_one():
     x, f = A.ecdf([3.0, 1.0, np.nan, 2.0])
     assert list(x) == [1.0, 2.0, 3.0] and f[-1] == 1.0 and np.all(np.diff(f) > 0)
+
+
+def _cell_rows(effect, level, metric, collisions, n=4, remedy="none"):
+    return [{"effect": effect, "level": level, "metric": metric, "remedy": remedy,
+             "status": "ok", "outcome": "completed", "completed": True, "stalled": False,
+             "collision": i < collisions} for i in range(n)]
+
+
+def test_the_margin_is_the_largest_level_below_the_first_with_a_collision():
+    rows = (_cell_rows("none", 0.0, "smooth", 3)  # ignored: the baseline
+            + _cell_rows("delay", 2.0, "smooth", 4, remedy="compensated")  # ignored: a remedy
+            + [r for level, k in ((1.0, 0), (2.0, 0), (3.0, 1)) for r in
+               _cell_rows("delay", level, "smooth", k)]
+            + [r for level, k in ((1.0, 0), (2.0, 2), (3.0, 0)) for r in
+               _cell_rows("delay", level, "euclidean", k)]
+            + [r for level, k in ((1.0, 1), (2.0, 0))
+               for r in _cell_rows("lag", level, "smooth", k)]
+            + [r for level in (1.0, 2.0) for r in _cell_rows("wind", level, "smooth", 0)])
+    m = A.margins(pd.DataFrame(rows)).set_index(["effect", "metric"])
+    assert (m.loc[("delay", "smooth"), ["margin", "first_failure"]] == [2.0, 3.0]).all()
+    # the first failure counts, even if a higher level happened to stay clear
+    assert (m.loc[("delay", "euclidean"), ["margin", "first_failure"]] == [1.0, 2.0]).all()
+    assert m.loc[("delay", "euclidean"), "worst_k"] == 2
+    assert np.isnan(m.loc[("lag", "smooth"), "margin"])
+    wind = m.loc[("wind", "smooth")]
+    assert wind["margin"] == 2.0 and np.isnan(wind["first_failure"]) and wind["worst_k"] == 0
+    # Clopper-Pearson: 0 of 4 bounds the rate below 1 - 0.025^(1/4) = 0.60
+    assert wind["worst_high"] == pytest.approx(1 - 0.025 ** 0.25)
+    assert set(m.index.get_level_values("effect")) == {"delay", "lag", "wind"}

@@ -113,6 +113,36 @@ def by_setting(table: pd.DataFrame, settings=("metric", "eta", "sigma"),
     return pd.DataFrame(rows)
 
 
+def margins(table: pd.DataFrame, event: str = "collision", confidence: float = 0.95
+            ) -> pd.DataFrame:
+    """The robustness margin of each effect swept over levels, per metric.
+
+    ``table`` has the columns ``effect``, ``level`` (rising with severity), ``metric`` and
+    ``remedy``, and one row per run. Only the cells without a remedy and of one effect alone
+    count (not ``"none"`` or ``"combined"``). Per (effect, metric): the levels flown, the
+    ``margin`` (the largest level below the first level with any ``event``; NaN when the
+    first level already has one), ``first_failure`` (that level; NaN when none has one), and
+    the worst cell's rate with its Clopper–Pearson interval.
+    """
+    t = _events(table)
+    t = t[(t["remedy"] == "none") & ~t["effect"].isin(["none", "combined"])]
+    rows = []
+    for (effect, metric), cells in t.groupby(["effect", "metric"], sort=False):
+        levels = sorted(cells["level"].unique())
+        counts = [(level, int(cells.loc[cells["level"] == level, event].sum()),
+                   int((cells["level"] == level).sum())) for level in levels]
+        failing = [level for level, k, _ in counts if k > 0]
+        first = failing[0] if failing else np.nan
+        below = [level for level in levels if not failing or level < first]
+        _, k, n = max(counts, key=lambda c: (c[1] / c[2], c[0]))
+        ci = stats.binomtest(k, n).proportion_ci(confidence, method="exact")
+        rows.append({"effect": effect, "metric": metric, "levels": len(levels),
+                     "margin": below[-1] if below else np.nan, "first_failure": first,
+                     "worst_k": k, "worst_n": n, "worst_rate": k / n, "worst_low": ci.low,
+                     "worst_high": ci.high})
+    return pd.DataFrame(rows)
+
+
 def ecdf(values) -> tuple[np.ndarray, np.ndarray]:
     """Empirical CDF: sorted values and the share of values ≤ each."""
     v = np.sort(np.asarray(values, float)[~np.isnan(np.asarray(values, float))])

@@ -60,10 +60,10 @@ def main(args) -> int:
                        force=args.force, runs_dir=paths.results_dir() / "runs",
                        progress=False if args.no_progress else None,
                        log=lambda line: print(line, flush=True))
-    if not args.no_figures:
+    notebook = STUDY_NOTEBOOKS.get(args.name)  # a study without one: its table is its set
+    if not args.no_figures and notebook is not None:
         from paper_repro.studies.reproduce import execute_notebook, notebook_path
 
-        notebook = STUDY_NOTEBOOKS[args.name]
         t0 = time.perf_counter()
         params = {"study_dir": str(result.directory),
                   **(STUDY_NOTEBOOK_QUICK.get(args.name, {}) if args.quick else {})}
@@ -71,6 +71,7 @@ def main(args) -> int:
                          paths.executed_dir(args.quick) / f"{notebook}.ipynb", params)
         print(f"notebook {notebook}: figures in {result.directory} "
               f"({duration(time.perf_counter() - t0)})", flush=True)
+    if not args.no_figures:
         # Last, once the table and every figure are in place: the set is this code's.
         stamp(result.directory, command_line(), layer_of(*(s.config for s in study.specs)))
     return 0

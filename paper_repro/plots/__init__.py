@@ -68,6 +68,7 @@ from paper_repro.plots.sensing import (
 )
 from paper_repro.plots.studies import (
     METRIC_COLOURS,
+    plot_cells,
     plot_clearance_ecdf,
     plot_paired,
     plot_paired_by,
@@ -85,6 +86,7 @@ __all__ = [
     "lidar_instants",
     "METRIC_COLOURS",
     "plot_barrier_penalty",
+    "plot_cells",
     "plot_clearance_ecdf",
     "plot_clearance_time",
     "plot_clock_levers",

@@ -182,3 +182,33 @@ def plot_sweep(settings, x: str, fixed: dict, columns=(
             ax.set_ylim(-0.05, 1.05)  # a share: the whole range, so 25 % looks like 25 %
     axes[0, 0].legend(frameon=False, fontsize=8)
     return fig
+
+
+def plot_cells(cells, columns=("collision_rate", "hf_energy_fraction")):
+    """Per cell of a sweep (one row of :func:`paper_repro.analysis.statistics.by_setting` per
+    cell and metric, with a ``cell`` column naming it): each column's value with its 95 %
+    interval (``<column>_low`` and ``<column>_high``; ``<event>_low`` and ``<event>_high``
+    for a rate ``<event>_rate``), both metrics side by side, one panel per column."""
+    names = list(dict.fromkeys(cells["cell"]))
+    fig, axes = plt.subplots(len(columns), 1, figsize=(max(6.0, 0.45 * len(names)),
+                                                        2.4 * len(columns)),
+                             sharex=True, constrained_layout=True)
+    labels = {"collision_rate": "collision rate", "completed_rate": "completion rate",
+              "hf_energy_fraction": "share of thrust power > 5 Hz (median)",
+              "min_clearance_m": "min clearance, m (median)"}
+    for ax, col in zip(np.atleast_1d(axes), columns, strict=True):
+        for i, (metric, rows) in enumerate(cells.groupby("metric", sort=False)):
+            rows = rows.set_index("cell").reindex(names)
+            x = np.arange(len(names)) + (i - 0.5) * 0.25
+            y = rows[col].to_numpy(float)
+            stem = col.removesuffix("_rate")
+            err = np.abs(np.vstack([y - rows[f"{stem}_low"].to_numpy(float),
+                                    rows[f"{stem}_high"].to_numpy(float) - y]))
+            ax.errorbar(x, y, yerr=err, fmt="o", ms=4, capsize=3,
+                        color=METRIC_COLOURS.get(metric), label=metric)
+        ax.set_ylabel(labels.get(col, col), fontsize=8)
+        ax.grid(alpha=0.3)
+    np.atleast_1d(axes)[0].legend(fontsize=8)
+    np.atleast_1d(axes)[-1].set_xticks(np.arange(len(names)), names, rotation=60,
+                                       ha="right", fontsize=7)
+    return fig

@@ -41,7 +41,7 @@ from pathlib import Path
 
 from paper_repro import paths
 from paper_repro.analysis import metrics
-from paper_repro.config import Config, GuideParams, SensorParams, SimulationParams
+from paper_repro.config import Config, GuideParams, PlantParams, SensorParams, SimulationParams
 from paper_repro.paths import atomic_write
 from paper_repro.progress import duration
 from paper_repro.studies.catalogue import Study
@@ -238,12 +238,13 @@ def _warm(key: str) -> None:
 
 def controller_key(config: Config) -> str:
     """What a controller depends on: the configuration without its mission (``simulation``:
-    scene, run kind, limits), its sensor's imperfections and map, and the guide that hands it
-    its set-points. It keeps the one sensor setting the problem reads, ``sensor.range`` (the
-    sensing window's r_s)."""
+    scene, run kind, limits), its sensor's imperfections and map, the guide that hands it its
+    set-points and the plant it flies (it predicts with its nominal model whatever the plant).
+    It keeps the one sensor setting the problem reads, ``sensor.range`` (the sensing window's
+    r_s)."""
     neutral = dataclasses.replace(config, simulation=SimulationParams(),
                                   sensor=SensorParams(range=config.sensor.range),
-                                  guide=GuideParams())
+                                  guide=GuideParams(), plant=PlantParams())
     return json.dumps(neutral.to_dict(), sort_keys=True, default=str)
 
 
