@@ -110,9 +110,11 @@ def test_effects_off_it_flies_our_plant_closed_loop(rotorpy):
 
 
 def test_rotor_speeds_persist_between_steps(rotorpy):
-    """With a lag, two steps of T_s land where one step of 2·T_s does, and reset restarts."""
-    lag = effects(motor_lag=0.03)
-    short, long = RotorpyPlant(PARAMS, TS, lag), RotorpyPlant(PARAMS, 2 * TS, lag)
+    """With a lag, two steps of T_s land where one step of 2·T_s does (to the integrator's
+    tolerance, tightened here), and reset restarts."""
+    lag, tight = effects(motor_lag=0.03), {"rtol": 1e-10, "atol": 1e-12}
+    short, long = (RotorpyPlant(PARAMS, TS, lag, **tight),
+                   RotorpyPlant(PARAMS, 2 * TS, lag, **tight))
     x0, u = np.zeros(12), np.full(4, 1.2 * HOVER)
     a = fly(short, x0, [u, u])[-1]
     b = fly(long, x0, [u])[-1]
