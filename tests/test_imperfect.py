@@ -178,3 +178,41 @@ def test_the_command_line_names_the_plant():
     with pytest.raises(ValueError, match="--motor-lag -0.1.*motor_lag must be"):
         run_config(parser.parse_args(["--out", "unused", "--plant", "rotorpy",
                                       "--motor-lag", "-0.1"]))
+
+
+def test_a_gust_timed_by_clearance_starts_where_the_vehicle_first_comes_that_close():
+    """The encounter's start, flown straight at its nearest cloud point 5 cm a step: the gust
+    is off until the first step within 1.2 m of it, then the 1-cosine from that step's time."""
+    from scipy.spatial import cKDTree
+
+    from paper_repro.sim.plant import GustTrigger
+    from paper_repro.world.scenarios import make_scene
+    from paper_repro.world.wind import OneCosineGust
+
+    scene = make_scene("encounter")
+    start = np.asarray(scene.start, float)
+    points = scene.all_points
+    nearest = points[cKDTree(points).query(start)[1]]
+    step = np.zeros(12)
+    step[:3] = 0.05 * (nearest - start) / np.linalg.norm(nearest - start)
+    gust = OneCosineGust((0.0, 2.0, 0.0), duration=0.1, start=0.0)
+    plant = GustTrigger(Recorder(), gust, scene, distance=1.2, ts=0.01)
+    assert np.all(gust(0.0) == 0)  # off until the vehicle comes close
+    plant.reset(np.zeros(12))
+    x = np.zeros(12)
+    x[:3] = start
+    first = None
+    for k in range(200):
+        near = np.min(np.linalg.norm(points - x[:3], axis=1))
+        first = k if first is None and near < 1.2 else first
+        x = plant.step(x, step)
+        assert np.isinf(gust.start) if first is None else gust.start == first * 0.01
+    assert first is not None and first > 0
+    np.testing.assert_allclose(gust(first * 0.01 + 0.05), [0.0, 2.0, 0.0])  # its peak
+    plant.reset(np.zeros(12))
+    assert np.isinf(gust.start)
+    with pytest.raises(ValueError, match="gust_clearance times a gust"):
+        PlantParams(simulator="rotorpy", rotor_drag=1e-4, gust_clearance=1.0)
+    with pytest.raises(ValueError, match="needs the scene"):
+        plant_for(quadrotor_model(), Config(plant=PlantParams(
+            simulator="rotorpy", rotor_drag=1e-4, gust=(0.0, 2.0, 0.0), gust_clearance=1.0)))

@@ -295,6 +295,9 @@ class PlantParams:
         (:func:`paper_repro.world.wind.dryden_turbulence`, at the start's altitude).
     gust : (3,) m/s, the peak of one 1-cosine gust (0: none), lasting ``gust_duration`` s
         from ``gust_start`` s.
+    gust_clearance : m, or ``None`` (default). The gust starts instead at the first step at
+        which the vehicle is within this distance of a cloud point: timed to meet it where it
+        passes closest to an obstacle.
     estimation : the state the controller is given, one of :data:`ESTIMATES`: the true
         state (``"perfect"``, default) or an estimate with noise and latency.
     delay_steps : computation delay, in steps of T_s (0, 1 or 2 typical): the input computed
@@ -323,6 +326,7 @@ class PlantParams:
     gust: tuple[float, float, float] = (0.0, 0.0, 0.0)
     gust_duration: float = 0.75
     gust_start: float = 0.0
+    gust_clearance: float | None = None
     estimation: str = "perfect"
     delay_steps: int = 0
     compensate_latency: bool = False
@@ -348,6 +352,12 @@ class PlantParams:
                 raise ValueError(f"{name} must be 3 {what}, got {value!r}")
         require_int("delay_steps", self.delay_steps, 0)
         require_int("seed", self.seed, 0)
+        if self.gust_clearance is not None and not (
+                is_number(self.gust_clearance) and 0 < self.gust_clearance < math.inf):
+            raise ValueError(f"gust_clearance must be None or a finite number of metres > 0, "
+                             f"got {self.gust_clearance!r}")
+        if self.gust_clearance is not None and not any(self.gust):
+            raise ValueError("gust_clearance times a gust: set gust (its peak, m/s) too")
         if not isinstance(self.compensate_latency, bool):
             raise ValueError(f"compensate_latency must be True or False, got "
                              f"{self.compensate_latency!r}")

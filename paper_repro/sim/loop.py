@@ -189,7 +189,7 @@ def _assemble(cfg: Config, controller, scene, faults, initial_state, model, plan
     hazards = setup_hazards(cfg, scene, model)
     for line in hazards["warnings"]:
         warnings.warn(f"{scene.name}: {line}", SetupHazardWarning, stacklevel=3)
-    plant = _plant(plant, model, cfg, x)
+    plant = _plant(plant, model, cfg, x, scene)
     perception = Perception(cfg, scene, None if faults is None else faults.scan)
     output = _output_map(model)
     guide = _guide(cfg, model, perception.local_map)
@@ -242,12 +242,12 @@ def _fall_back(ctl, sol: NMPCSolution, plan: NMPCSolution | None, last_good):
     return plan, sol
 
 
-def _plant(plant, model: VehicleModel, cfg: Config, x0: np.ndarray):
+def _plant(plant, model: VehicleModel, cfg: Config, x0: np.ndarray, scene):
     """``plant`` checked (an object with ``step``), or the one ``cfg.plant`` describes for
-    ``model`` starting at ``x0`` (:func:`~paper_repro.sim.plant.plant_for`)."""
+    ``model`` starting at ``x0`` in ``scene`` (:func:`~paper_repro.sim.plant.plant_for`)."""
     if plant is None:
         position = x0[list(model.position)]
-        plant = plant_for(model, cfg, float(position[2]) if len(position) == 3 else 2.0)
+        plant = plant_for(model, cfg, float(position[2]) if len(position) == 3 else 2.0, scene)
     if not callable(getattr(plant, "step", None)):
         raise ValueError(f"plant must have a step(x, u) -> x_next method, got "
                          f"{type(plant).__name__}")

@@ -177,7 +177,7 @@ class ModelPlant:
         return np.asarray(self._step(x, u), float).ravel()
 
 
-def plant_for(model: VehicleModel, config: Config, altitude: float = 2.0):
+def plant_for(model: VehicleModel, config: Config, altitude: float = 2.0, scene=None):
     """The plant a closed loop flies ``model`` with, as ``config.plant`` says.
 
     * The simulator: :class:`QuadrotorPlant` (RK45 in C, as the paper's ODE45) for the
@@ -191,6 +191,8 @@ def plant_for(model: VehicleModel, config: Config, altitude: float = 2.0):
     * ``plant.compensate_latency``: the controller is given the state predicted over both
       latencies with the nominal model
       (:class:`~paper_repro.sim.imperfect.LatencyCompensation`).
+    * ``plant.gust_clearance``: the gust starts when the vehicle comes that close to a cloud
+      point of ``scene`` (:class:`GustTrigger`).
     """
     from paper_repro.sim.imperfect import DelayedInput, EstimatedState, LatencyCompensation
 
@@ -203,8 +205,13 @@ def plant_for(model: VehicleModel, config: Config, altitude: float = 2.0):
     if p.simulator == "rotorpy":
         from paper_repro.sim.rotorpy_plant import RotorpyPlant
 
-        plant = RotorpyPlant(config.quadrotor, ts, p,
-                             wind=wind_of(config, altitude) if p.moving_air() else None)
+        wind = wind_of(config, altitude) if p.moving_air() else None
+        plant = RotorpyPlant(config.quadrotor, ts, p, wind=wind)
+        if p.gust_clearance is not None:
+            if scene is None:
+                raise ValueError("plant.gust_clearance times the gust by the scene's clouds: "
+                                 "plant_for needs the scene")
+            plant = GustTrigger(plant, wind.gusts[0], scene, p.gust_clearance, ts)
     elif quadrotor:
         plant = QuadrotorPlant(config.quadrotor, ts)
     else:
@@ -237,3 +244,37 @@ def wind_of(config: Config, altitude: float):
                                        heading=float(np.arctan2(mean[1], mean[0])))
     gusts = ((OneCosineGust(p.gust, p.gust_duration, p.gust_start),) if any(p.gust) else ())
     return Wind(mean, turbulence, gusts)
+
+
+class GustTrigger:
+    """``plant``, whose ``gust`` (a :class:`~paper_repro.world.wind.OneCosineGust` of its wind)
+    starts at the first step at which the vehicle's position is within ``distance`` (m) of a
+    cloud point of ``scene`` (where the cloud is at that time). Until then the gust is off.
+
+    The position is the quadrotor's, states 0-2; the time is the step's, k·``ts``."""
+
+    def __init__(self, plant, gust, scene, distance: float, ts: float):
+        from paper_repro.world.truth import TrueClearance
+
+        self.plant, self.gust, self.distance, self.ts = plant, gust, float(distance), ts
+        self.clearance = TrueClearance(scene)
+        self.gust.start, self.k = math.inf, 0  # off until the vehicle comes close
+
+    def reset(self, x0) -> None:
+        self.gust.start, self.k = math.inf, 0
+        if callable(getattr(self.plant, "reset", None)):
+            self.plant.reset(x0)
+
+    def step(self, x, u) -> np.ndarray:
+        """Start the gust now if the vehicle is close enough, then step the plant."""
+        t = self.k * self.ts
+        if math.isinf(self.gust.start):
+            near = self.clearance.along(np.asarray(x, float)[None, :3], np.array([t]))[0]
+            if near < self.distance:
+                self.gust.start = t
+        self.k += 1
+        return self.plant.step(x, u)
+
+    def measure(self, x) -> np.ndarray:
+        measure = getattr(self.plant, "measure", None)
+        return measure(x) if callable(measure) else x

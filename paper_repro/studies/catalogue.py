@@ -298,6 +298,11 @@ AIR = {"rotor_drag": 1e-4, "parasitic_drag": (0.01, 0.01, 0.01)}
 """The drag the wind acts through in the wind cells: a rotor drag between the x500's
 values and a body drag of about 1e-2 (``PlantParams``)."""
 
+GUST_CLEARANCE = 2.0
+"""m, the gust cells' gust starts when the vehicle first comes this close to a cloud point
+(``PlantParams.gust_clearance``), so that the gust (0.75 s, ``gust_duration``) meets the
+closest approach."""
+
 EFFECTS: dict[str, tuple[tuple[float, str, dict], ...]] = {
     "motor_lag": tuple((tau, f"{tau * 1e3:g} ms", {"motor_lag": tau})
                        for tau in (0.0125, 0.025, 0.05, 0.07)),
@@ -308,13 +313,17 @@ EFFECTS: dict[str, tuple[tuple[float, str, dict], ...]] = {
                         for d in (0.01, 0.02)),
     "wind": tuple((w, f"{w:g} m/s", {"wind": (0.0, w, 0.0), "turbulence": "light", **AIR})
                   for w in (3.0, 6.0)),
+    "gust": tuple((g, f"{g:g} m/s", {"gust": (0.0, g, 0.0), "gust_clearance": GUST_CLEARANCE,
+                                      **AIR})
+                  for g in (2.0, 4.0)),
     "estimation": ((1.0, "mocap", {"estimation": "mocap"}), (2.0, "vio", {"estimation": "vio"})),
     "delay": tuple((d, f"{d:g} steps", {"delay_steps": d}) for d in (1, 2)),
 }
 """Each effect of ``PlantParams`` at each level, alone: (level, its name, the settings).
 Magnitudes for a 2.2 kg quadrotor: motor lags of PX4's simulators (12.5-50 ms) and fitted
 x500 thrust lags (up to 70 ms); the x500's rotor drag; ±10 % thrust, +10 % mass and a centre
-of mass 1-2 cm off; a mean wind across the +y axis with light Dryden turbulence; the
+of mass 1-2 cm off; a mean wind across the +y axis with light Dryden turbulence; a 1-cosine
+gust of 2-4 m/s timed by :data:`GUST_CLEARANCE`; the
 estimates of :data:`~paper_repro.config.ESTIMATES` (level 1 motion capture, 2 visual-inertial)
 and a computation delay of 1-2 steps. The levels of an effect rise with its severity."""
 
