@@ -221,66 +221,79 @@ def plot_scan_change_study(table, by: str = "window_m", label: str = "sensing wi
     -------
     matplotlib Figure with four Axes.
     """
-    from paper_repro.analysis.statistics import rates as outcome_rates
-
     settings = sorted(table[by].dropna().unique())
     colours = dict(zip(settings, plt.cm.viridis(np.linspace(0.15, 0.85, len(settings))),
                        strict=True))
     fig, axes = plt.subplots(1, 4, figsize=(14.0, 3.4), constrained_layout=True)
-    rates = outcome_rates(table, by=[by])
-    width = 0.8 / max(len(settings), 1)
-    for i, s in enumerate(settings):
-        r = rates[rates[by] == s].set_index("event").loc[list(events)]
-        x = np.arange(len(events)) + (i - (len(settings) - 1) / 2) * width
-        axes[0].bar(x, r["rate"], width, color=colours[s], alpha=0.85,
-                    label=f"{s:g} (n = {int(r['n'].iloc[0])})")
-        axes[0].errorbar(x, r["rate"], yerr=[r["rate"] - r["low"], r["high"] - r["rate"]],
-                         fmt="none", ecolor="k", capsize=3, lw=1)
-    axes[0].set_xticks(np.arange(len(events)), events)
-    axes[0].set_ylim(0, 1.05)
-    axes[0].set_ylabel("share of runs")
-    axes[0].legend(title=label, fontsize="x-small", title_fontsize="x-small", frameon=False)
+    _rates_panel(axes[0], table, by, label, settings, colours, events)
     ok = table[table["status"] == "ok"]
-    jitter = np.random.default_rng(0)
-    x = np.arange(len(settings))
+    jitter = np.random.default_rng(0)  # one generator, drawn panel after panel
     panels = ((axes[1], ("scan_change_jump_share",), f"share of changes with a step "
                f"> {threshold * 1e3:g} mN", False),
               (axes[2], tuple(steps), "median thrust step [N]: at changes (●), around (○)",
                True),
               (axes[3], ("min_clearance_m",), "minimum clearance [m]", False))
     for ax, columns, title, log in panels:
-        drawn = []
-        for i, s in enumerate(settings):
-            group = ok[ok[by] == s]
-            for c, column in enumerate(columns):
-                v = group[column].to_numpy(float)
-                v = v[np.isfinite(v)]
-                drawn.append(v)
-                if not len(v):
-                    continue
-                offset = (c - (len(columns) - 1) / 2) * 0.3
-                xs = i + offset + jitter.uniform(-0.08, 0.08, len(v))
-                ax.scatter(xs, v, s=14, facecolors=colours[s] if c == 0 else "none",
-                           edgecolors=colours[s], lw=1, zorder=3)
-                ax.hlines(np.median(v), i + offset - 0.15, i + offset + 0.15, color="k",
-                          lw=2, zorder=4)
-        values = np.concatenate(drawn) if drawn else np.array([])
-        missing = int(sum(np.sum(~np.isfinite(ok.loc[ok[by] == s, columns[0]].to_numpy(float)))
-                          for s in settings))
-        if not len(values):
-            ax.text(0.5, 0.5, "no change of the visible set", transform=ax.transAxes,
-                    ha="center", color="0.5")
-        elif log and values.min() > 0:
-            ax.set_yscale("log")
-        if missing and columns[0] != "min_clearance_m":
-            ax.text(0.02, 0.02, f"{missing} run(s) without a change", transform=ax.transAxes,
-                    va="bottom", fontsize=7, color="0.4")
-        ax.set_xticks(x, [f"{s:g}" for s in settings])
-        ax.set_xlim(-0.6, len(settings) - 0.4)
-        ax.set_xlabel(label)
+        _runs_panel(ax, ok, by, label, settings, colours, columns, log, jitter)
         ax.set_title(title, fontsize=9)
-        ax.grid(alpha=0.3, axis="y")
     axes[1].axhline(0.0, color="0.6", lw=0.8)
     axes[2].axhline(threshold, color="k", ls=":", lw=1)
     axes[3].axhline(collision, color="k", ls=":", lw=1)
     return fig
+
+
+def _rates_panel(ax, table, by: str, label: str, settings, colours, events) -> None:
+    """Panel 1 of :func:`plot_scan_change_study`: the rate of each of ``events`` per setting,
+    bars with 95 % Clopper–Pearson intervals."""
+    from paper_repro.analysis.statistics import rates as outcome_rates
+
+    rates = outcome_rates(table, by=[by])
+    width = 0.8 / max(len(settings), 1)
+    for i, s in enumerate(settings):
+        r = rates[rates[by] == s].set_index("event").loc[list(events)]
+        x = np.arange(len(events)) + (i - (len(settings) - 1) / 2) * width
+        ax.bar(x, r["rate"], width, color=colours[s], alpha=0.85,
+               label=f"{s:g} (n = {int(r['n'].iloc[0])})")
+        ax.errorbar(x, r["rate"], yerr=[r["rate"] - r["low"], r["high"] - r["rate"]],
+                    fmt="none", ecolor="k", capsize=3, lw=1)
+    ax.set_xticks(np.arange(len(events)), events)
+    ax.set_ylim(0, 1.05)
+    ax.set_ylabel("share of runs")
+    ax.legend(title=label, fontsize="x-small", title_fontsize="x-small", frameon=False)
+
+
+def _runs_panel(ax, ok, by: str, label: str, settings, colours, columns, log: bool,
+                jitter) -> None:
+    """A per-run panel of :func:`plot_scan_change_study`: each run's value of each of
+    ``columns`` per setting (the first filled, the second open), jittered by ``jitter``, with
+    the median as a bar; a log axis when ``log`` and every value is positive."""
+    drawn = []
+    for i, s in enumerate(settings):
+        group = ok[ok[by] == s]
+        for c, column in enumerate(columns):
+            v = group[column].to_numpy(float)
+            v = v[np.isfinite(v)]
+            drawn.append(v)
+            if not len(v):
+                continue
+            offset = (c - (len(columns) - 1) / 2) * 0.3
+            xs = i + offset + jitter.uniform(-0.08, 0.08, len(v))
+            ax.scatter(xs, v, s=14, facecolors=colours[s] if c == 0 else "none",
+                       edgecolors=colours[s], lw=1, zorder=3)
+            ax.hlines(np.median(v), i + offset - 0.15, i + offset + 0.15, color="k",
+                      lw=2, zorder=4)
+    values = np.concatenate(drawn) if drawn else np.array([])
+    missing = int(sum(np.sum(~np.isfinite(ok.loc[ok[by] == s, columns[0]].to_numpy(float)))
+                      for s in settings))
+    if not len(values):
+        ax.text(0.5, 0.5, "no change of the visible set", transform=ax.transAxes,
+                ha="center", color="0.5")
+    elif log and values.min() > 0:
+        ax.set_yscale("log")
+    if missing and columns[0] != "min_clearance_m":
+        ax.text(0.02, 0.02, f"{missing} run(s) without a change", transform=ax.transAxes,
+                va="bottom", fontsize=7, color="0.4")
+    ax.set_xticks(np.arange(len(settings)), [f"{s:g}" for s in settings])
+    ax.set_xlim(-0.6, len(settings) - 0.4)
+    ax.set_xlabel(label)
+    ax.grid(alpha=0.3, axis="y")
