@@ -8,6 +8,7 @@ import numpy as np
 from paper_repro.analysis import metrics
 from paper_repro.plots.common import MAX_POINTS, axes_or_new, envelope_indices
 from paper_repro.plots.flight import steps_in
+from paper_repro.plots.studies import rate_bars
 
 # --- the smooth sensing window ----------------------------------------------------------------
 
@@ -247,18 +248,8 @@ def _rates_panel(ax, table, by: str, label: str, settings, colours, events) -> N
     bars with 95 % Clopper–Pearson intervals."""
     from paper_repro.analysis.statistics import rates as outcome_rates
 
-    rates = outcome_rates(table, by=[by])
-    width = 0.8 / max(len(settings), 1)
-    for i, s in enumerate(settings):
-        r = rates[rates[by] == s].set_index("event").loc[list(events)]
-        x = np.arange(len(events)) + (i - (len(settings) - 1) / 2) * width
-        ax.bar(x, r["rate"], width, color=colours[s], alpha=0.85,
-               label=f"{s:g} (n = {int(r['n'].iloc[0])})")
-        ax.errorbar(x, r["rate"], yerr=[r["rate"] - r["low"], r["high"] - r["rate"]],
-                    fmt="none", ecolor="k", capsize=3, lw=1)
-    ax.set_xticks(np.arange(len(events)), events)
-    ax.set_ylim(0, 1.05)
-    ax.set_ylabel("share of runs")
+    rate_bars(ax, outcome_rates(table, by=[by]), by, settings, colours, events, alpha=0.85,
+              name=lambda s: f"{s:g}")
     ax.legend(title=label, fontsize="x-small", title_fontsize="x-small", frameon=False)
 
 

@@ -20,19 +20,28 @@ def plot_rates(rates, ax=None):
     fig, ax = axes_or_new(ax, (7.0, 3.2))
     events = list(dict.fromkeys(rates["event"]))
     metrics_ = list(dict.fromkeys(rates["metric"]))
-    width = 0.8 / len(metrics_)
-    for i, m in enumerate(metrics_):
-        r = rates[rates["metric"] == m].set_index("event").loc[events]
-        x = np.arange(len(events)) + (i - (len(metrics_) - 1) / 2) * width
-        ax.bar(x, r["rate"], width, color=METRIC_COLOURS.get(m), alpha=0.8,
-               label=f"{m} (n = {int(r['n'].iloc[0])})")
+    rate_bars(ax, rates, "metric", metrics_, {m: METRIC_COLOURS.get(m) for m in metrics_},
+              events, alpha=0.8)
+    ax.legend(frameon=False)
+    return fig
+
+
+def rate_bars(ax, rates, by: str, groups, colours, events, alpha: float,
+              name=str) -> None:
+    """Bars of the rate of each of ``events`` for each of ``groups`` (values of the column
+    ``by`` of :func:`paper_repro.analysis.statistics.rates`), side by side, with their 95 %
+    Clopper–Pearson intervals; each group labelled ``name(group)`` and its number of runs."""
+    width = 0.8 / max(len(groups), 1)
+    for i, g in enumerate(groups):
+        r = rates[rates[by] == g].set_index("event").loc[list(events)]
+        x = np.arange(len(events)) + (i - (len(groups) - 1) / 2) * width
+        ax.bar(x, r["rate"], width, color=colours[g], alpha=alpha,
+               label=f"{name(g)} (n = {int(r['n'].iloc[0])})")
         ax.errorbar(x, r["rate"], yerr=[r["rate"] - r["low"], r["high"] - r["rate"]],
                     fmt="none", ecolor="k", capsize=3, lw=1)
     ax.set_xticks(np.arange(len(events)), events)
     ax.set_ylim(0, 1.05)
     ax.set_ylabel("share of runs")
-    ax.legend(frameon=False)
-    return fig
 
 
 def plot_paired(table, a: str = "smooth", b: str = "euclidean", pair_on: str = "scene_seed",
