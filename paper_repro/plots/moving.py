@@ -383,16 +383,7 @@ def plot_prediction_study(table, events=("completed", "collision", "stalled", "s
     width = 0.8 / max(len(metrics_), 1)
     x = np.arange(len(predictions))
     for ax, event in zip(axes, events):
-        for i, m in enumerate(metrics_):
-            r = rates[(rates["metric"] == m) & (rates["event"] == event)].set_index(
-                "prediction").loc[predictions]
-            xs = x + (i - (len(metrics_) - 1) / 2) * width
-            ax.bar(xs, r["rate"], width, color=METRIC_COLOURS.get(m, f"C{i}"), alpha=0.8,
-                   label=f"{m} (n = {int(r['n'].iloc[0])})")
-            ax.errorbar(xs, r["rate"], yerr=[r["rate"] - r["low"], r["high"] - r["rate"]],
-                        fmt="none", ecolor="k", capsize=3, lw=1)
-        ax.set_ylim(0, 1.05)
-        ax.set_title(f"{event} rate", fontsize=9)
+        _event_panel(ax, rates, event, predictions, metrics_, width)
     axes[0].set_ylabel("share of runs")
     axes[0].legend(fontsize="x-small", frameon=False)
     ok = table[table["status"] == "ok"]
@@ -401,21 +392,7 @@ def plot_prediction_study(table, events=("completed", "collision", "stalled", "s
                (axes[len(events) + 1], "tv_u_rate_N_per_s", "total variation of u per s [N/s]",
                 True))
     for ax, column, title, log in per_run:
-        values = []
-        for i, m in enumerate(metrics_):
-            offset = (i - (len(metrics_) - 1) / 2) * width
-            for j, p in enumerate(predictions):
-                v = ok.loc[(ok["metric"] == m) & (ok["prediction"] == p), column].to_numpy(float)
-                v = v[np.isfinite(v)]
-                if not len(v):
-                    continue
-                values.append(v)
-                ax.scatter(j + offset + jitter.uniform(-0.06, 0.06, len(v)), v, s=12,
-                           color=METRIC_COLOURS.get(m, f"C{i}"), alpha=0.7, lw=0, zorder=3)
-                ax.hlines(np.median(v), j + offset - 0.12, j + offset + 0.12, color="k", lw=2,
-                          zorder=4)
-        if log and values and np.concatenate(values).min() > 0:
-            ax.set_yscale("log")
+        _per_run_panel(ax, ok, column, predictions, metrics_, width, log, jitter)
         ax.set_title(title, fontsize=9)
     axes[len(events)].axhline(collision, color="k", ls=":", lw=1,
                               label=f"collision < {collision:g} m")
@@ -426,3 +403,41 @@ def plot_prediction_study(table, events=("completed", "collision", "stalled", "s
         ax.set_xlabel("prediction")
         ax.grid(alpha=0.3, axis="y")
     return fig
+
+
+def _event_panel(ax, rates, event: str, predictions, metrics_, width: float) -> None:
+    """A rate panel of :func:`plot_prediction_study`: the rate of ``event`` per prediction,
+    one bar per metric, with its 95 % interval."""
+    x = np.arange(len(predictions))
+    for i, m in enumerate(metrics_):
+        r = rates[(rates["metric"] == m) & (rates["event"] == event)].set_index(
+            "prediction").loc[predictions]
+        xs = x + (i - (len(metrics_) - 1) / 2) * width
+        ax.bar(xs, r["rate"], width, color=METRIC_COLOURS.get(m, f"C{i}"), alpha=0.8,
+               label=f"{m} (n = {int(r['n'].iloc[0])})")
+        ax.errorbar(xs, r["rate"], yerr=[r["rate"] - r["low"], r["high"] - r["rate"]],
+                    fmt="none", ecolor="k", capsize=3, lw=1)
+    ax.set_ylim(0, 1.05)
+    ax.set_title(f"{event} rate", fontsize=9)
+
+
+def _per_run_panel(ax, ok, column: str, predictions, metrics_, width: float, log: bool,
+                   jitter) -> None:
+    """A per-run panel of :func:`plot_prediction_study`: each run's ``column`` per prediction
+    and metric, jittered by ``jitter``, the median of each group as a black bar; a log axis
+    when ``log`` and every value is positive."""
+    values = []
+    for i, m in enumerate(metrics_):
+        offset = (i - (len(metrics_) - 1) / 2) * width
+        for j, p in enumerate(predictions):
+            v = ok.loc[(ok["metric"] == m) & (ok["prediction"] == p), column].to_numpy(float)
+            v = v[np.isfinite(v)]
+            if not len(v):
+                continue
+            values.append(v)
+            ax.scatter(j + offset + jitter.uniform(-0.06, 0.06, len(v)), v, s=12,
+                       color=METRIC_COLOURS.get(m, f"C{i}"), alpha=0.7, lw=0, zorder=3)
+            ax.hlines(np.median(v), j + offset - 0.12, j + offset + 0.12, color="k", lw=2,
+                      zorder=4)
+    if log and values and np.concatenate(values).min() > 0:
+        ax.set_yscale("log")
