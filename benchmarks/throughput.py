@@ -101,35 +101,10 @@ def main() -> None:
     one = _row("1 worker", result.steps, wall, float(np.mean(result.solve_time)) * 1e3,
                plant_ms, cpu)
 
-    ctx = mp.get_context("spawn")
-    barrier = ctx.Barrier(args.workers)
-    queue = ctx.Queue()
-    procs = [ctx.Process(target=_worker, args=(args.scenario, args.steps, barrier, queue))
-             for _ in range(args.workers)]
-    for p in procs:
-        p.start()
-    reports = [queue.get() for _ in procs]
-    for p in procs:
-        p.join()
-    rows = [one]
-    for i, r in enumerate(reports):
-        rows.append(_row(f"worker {i + 1}/{args.workers}", r["steps"], r["wall"],
-                         r["controller_ms"], float("nan"), r["cpu"]))
-    span = max(r["end"] for r in reports) - min(r["start"] for r in reports)
-    total = sum(r["steps"] for r in reports)
-    rows.append(_row(f"{args.workers} workers, together", total, span, float("nan"),
-                     float("nan"), sum(r["cpu"] for r in reports)))
-
+    rows, together = _parallel_rows(one, args.scenario, args.steps, args.workers)
     print(f"# {args.scenario} mission, {cfg.distance.metric} metric; plant: {plant_name} "
           f"(replay reproduces the logged states to {replay_error:.1e} m)")
-    header = ("run", "steps", "wall s", "steps/s", "ms/step", "cpu ms", "plant ms",
-              "ctrl ms", "rest ms")
-    print("{:<22}{:>8}{:>9}{:>9}{:>9}{:>9}{:>10}{:>9}{:>9}".format(*header))
-    for r in rows:
-        print("{:<22}{:>8d}{:>9.2f}{:>9.0f}{:>9.3f}{:>9.3f}{:>10.3f}{:>9.3f}{:>9.3f}".format(
-            r["run"], r["steps"], r["wall"], r["steps_per_s"], r["ms"], r["cpu_ms"],
-            r["plant_ms"], r["controller_ms"], r["rest_ms"]))
-    together = total / span
+    print_parallel(rows)
     families = [row for name in args.families
                 for row in FAMILIES[name](args.steps, args.passages, args.crossings)]
     cluster = None
@@ -139,21 +114,7 @@ def main() -> None:
         print("# a 10,000-scene Monte Carlo (x 2 metrics) at this speed: "
               + ", ".join(f"{k} {v:,.4g}" for k, v in cluster.items()))
     if args.save:
-        from paper_repro.evidence.golden import layer_of, stamp
-        from paper_repro.studies.catalogue import make_study
-
-        out = figures_dir() / "throughput"
-        out.mkdir(parents=True, exist_ok=True)
-        pd.DataFrame(rows).assign(scenario=args.scenario).to_csv(
-            out / "parallel.csv", index=False, float_format="%.4g")
-        pd.DataFrame(families).to_csv(out / "families.csv", index=False, float_format="%.4g")
-        if cluster is not None:
-            pd.DataFrame([cluster]).to_csv(out / "cluster.csv", index=False,
-                                           float_format="%.4g")
-        # The crossings fly the moving study's configuration: the set carries its layer.
-        layer = (layer_of(*(s.config for s in make_study("moving_obstacles", scenes=1).specs))
-                 if "crossings" in args.families else "")
-        stamp(out, " ".join(["python", "benchmarks/throughput.py", *sys.argv[1:]]), layer)
+        save(rows, families, cluster, args.scenario, "crossings" in args.families)
     print(json.dumps({
         "steps_per_core_s": round(one["steps_per_s"], 1),
         "steps_per_s_2_workers": round(together, 1),
@@ -163,6 +124,61 @@ def main() -> None:
         "controller_ms_per_step": round(one["controller_ms"], 4),
         "families": families,
     }))
+
+
+def _parallel_rows(one: dict, scenario: str, steps: int, workers: int):
+    """The rows of the parallel run (``one``, the single flight, first; then each of
+    ``workers`` flights started at once in its own process; then all of them together) and
+    the steps per second of all together."""
+    ctx = mp.get_context("spawn")
+    barrier = ctx.Barrier(workers)
+    queue = ctx.Queue()
+    procs = [ctx.Process(target=_worker, args=(scenario, steps, barrier, queue))
+             for _ in range(workers)]
+    for p in procs:
+        p.start()
+    reports = [queue.get() for _ in procs]
+    for p in procs:
+        p.join()
+    rows = [one]
+    for i, r in enumerate(reports):
+        rows.append(_row(f"worker {i + 1}/{workers}", r["steps"], r["wall"],
+                         r["controller_ms"], float("nan"), r["cpu"]))
+    span = max(r["end"] for r in reports) - min(r["start"] for r in reports)
+    total = sum(r["steps"] for r in reports)
+    rows.append(_row(f"{workers} workers, together", total, span, float("nan"),
+                     float("nan"), sum(r["cpu"] for r in reports)))
+    return rows, total / span
+
+
+def print_parallel(rows: list[dict]) -> None:
+    """The parallel run's table: steps, wall time and the cost of a step by part."""
+    header = ("run", "steps", "wall s", "steps/s", "ms/step", "cpu ms", "plant ms",
+              "ctrl ms", "rest ms")
+    print("{:<22}{:>8}{:>9}{:>9}{:>9}{:>9}{:>10}{:>9}{:>9}".format(*header))
+    for r in rows:
+        print("{:<22}{:>8d}{:>9.2f}{:>9.0f}{:>9.3f}{:>9.3f}{:>10.3f}{:>9.3f}{:>9.3f}".format(
+            r["run"], r["steps"], r["wall"], r["steps_per_s"], r["ms"], r["cpu_ms"],
+            r["plant_ms"], r["controller_ms"], r["rest_ms"]))
+
+
+def save(rows: list[dict], families: list[dict], cluster: dict | None, scenario: str,
+         crossings: bool) -> None:
+    """Write ``figures/throughput/`` (this machine's times) and its stamp; with ``crossings``
+    the set carries the moving study's layer (its crossings fly that configuration)."""
+    from paper_repro.evidence.golden import layer_of, stamp
+    from paper_repro.studies.catalogue import make_study
+
+    out = figures_dir() / "throughput"
+    out.mkdir(parents=True, exist_ok=True)
+    pd.DataFrame(rows).assign(scenario=scenario).to_csv(
+        out / "parallel.csv", index=False, float_format="%.4g")
+    pd.DataFrame(families).to_csv(out / "families.csv", index=False, float_format="%.4g")
+    if cluster is not None:
+        pd.DataFrame([cluster]).to_csv(out / "cluster.csv", index=False, float_format="%.4g")
+    layer = (layer_of(*(s.config for s in make_study("moving_obstacles", scenes=1).specs))
+             if crossings else "")
+    stamp(out, " ".join(["python", "benchmarks/throughput.py", *sys.argv[1:]]), layer)
 
 
 # --- the scene families ------------------------------------------------------------------------
