@@ -6,6 +6,28 @@ each sampling instant. Its parts have modules of their own: what the controller 
 and when the flight ends (:mod:`~paper_repro.sim.termination`). :class:`SimulationResult`
 saves itself as ``result.npz`` with the full ``config.json`` beside it, and becomes a pandas
 DataFrame with :meth:`SimulationResult.to_frame`.
+
+Before anything is built, :func:`~paper_repro.sim.checks.check_setup` rejects an inconsistent
+mission (``ValueError``) and :func:`~paper_repro.sim.checks.setup_hazards` warns of an unsafe
+one (a start or target inside the unsafe set or within the rotor radius of a cloud, a
+target the artificial equilibrium cannot reach); the hazards are kept in
+``meta["hazards"]``.
+
+At step k (time t = k·T_s) the LiDAR sees each region where it is at t
+(:meth:`~paper_repro.world.lidar.Lidar.scan`), and the clearance is measured to the regions'
+true positions at t. With ``nmpc.prediction`` ``"static"`` (the paper) the
+controller is called as ``ctl.solve(x, target, visible, previous=plan)``; with
+``"oracle"`` or ``"kalman"`` it is also given ``velocities=``, one (3,) m/s per region of
+the scan: the regions' true velocities at t (:func:`~paper_repro.world.truth.scene_velocities`),
+or the estimates of a :class:`paper_repro.world.tracking.RegionTracker` updated with each scan.
+
+The run ends when it is complete (every target reached; for ``kind="passage"`` the finish
+line crossed), when it stalls, after ``max_steps``, or after persistent faults: see
+:data:`OUTCOMES`. A failed solve never stops the run: it is recorded in
+``success``/``status`` and the previous plan, shifted by one step, is applied instead (its
+first input). Non-finite points in a scan are dropped and counted in ``dropped_points``; a
+non-finite measured state or a solve that raises is a fault (:data:`FAULT_STATUSES`),
+handled the same way.
 """
 
 from __future__ import annotations
@@ -91,28 +113,6 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
         :class:`Faults` ``state`` then acts on it). Default
         :func:`~paper_repro.sim.plant.plant_for`: the quadrotor's RK45 in C, RK4 of the
         model's own dynamics for any other vehicle.
-
-    Before anything is built, :func:`~paper_repro.sim.checks.check_setup` rejects an inconsistent
-    mission (``ValueError``) and :func:`~paper_repro.sim.checks.setup_hazards` warns of an unsafe
-    one (a start or target inside the unsafe set or within the rotor radius of a cloud, a
-    target the artificial equilibrium cannot reach); the hazards are kept in
-    ``meta["hazards"]``.
-
-    At step k (time t = k·T_s) the LiDAR sees each region where it is at t
-    (:meth:`~paper_repro.world.lidar.Lidar.scan`), and the clearance is measured to the regions'
-    true positions at t. With ``nmpc.prediction`` ``"static"`` (the paper) the
-    controller is called as ``ctl.solve(x, target, visible, previous=plan)``; with
-    ``"oracle"`` or ``"kalman"`` it is also given ``velocities=``, one (3,) m/s per region of
-    the scan: the regions' true velocities at t (:func:`~paper_repro.world.truth.scene_velocities`),
-    or the estimates of a :class:`paper_repro.world.tracking.RegionTracker` updated with each scan.
-
-    The run ends when it is complete (every target reached; for ``kind="passage"`` the finish
-    line crossed), when it stalls, after ``max_steps``, or after persistent faults: see
-    :data:`OUTCOMES`. A failed solve never stops the run: it is recorded in
-    ``success``/``status`` and the previous plan, shifted by one step, is applied instead (its
-    first input). Non-finite points in a scan are dropped and counted in ``dropped_points``; a
-    non-finite measured state or a solve that raises is a fault (:data:`FAULT_STATUSES`),
-    handled the same way.
     """
     cfg = config or Config()
     if max_steps is not None:
