@@ -12,10 +12,12 @@ from paper_repro.config import PlantParams
 from paper_repro.studies.catalogue import (
     COMBINED,
     EFFECTS,
+    HARDWARE_GROUPS,
     HARDWARE_STEPS,
     REMEDIED,
     hardware,
     hardware_combined,
+    make_study,
 )
 
 
@@ -30,11 +32,21 @@ def _cells(study):
     return cells, plants
 
 
-def test_each_effect_alone_at_each_level_on_the_same_passages_for_both_metrics():
-    study = hardware(scenes=3)
+def test_the_studies_share_the_effects_out_and_each_flies_the_baseline():
+    groups = [set(effects) for effects in HARDWARE_GROUPS.values()]
+    assert set().union(*groups) == set(EFFECTS) and sum(map(len, groups)) == len(EFFECTS)
+    for name in HARDWARE_GROUPS:
+        assert make_study(name, scenes=2).name == name
+        assert make_study(name, quick=True).name == f"{name}-quick"
+
+
+@pytest.mark.parametrize("group", sorted(HARDWARE_GROUPS))
+def test_each_effect_alone_at_each_level_on_the_same_passages_for_both_metrics(group):
+    study = hardware(group, scenes=3)
     cells, plants = _cells(study)
     expected = {("none", 0.0, "none")} | {
-        (effect, level, remedy) for effect, levels in EFFECTS.items() for level, _, _ in levels
+        (effect, level, remedy) for effect in HARDWARE_GROUPS[group]
+        for level, _, _ in EFFECTS[effect]
         for remedy in (("none", "compensated") if effect in REMEDIED else ("none",))}
     assert set(cells) == expected
     for by_metric in cells.values():  # paired: the same three passages with both metrics
@@ -73,7 +85,8 @@ def test_every_effect_at_once_on_300_passages_and_the_remedy_on_the_first_50():
 
 def test_one_controller_per_metric_whatever_the_plant():
     """The NMPC predicts with its nominal model: a plant's effects never rebuild it."""
-    specs = hardware(quick=True).specs + hardware_combined(quick=True).specs
+    specs = [s for g in HARDWARE_GROUPS for s in hardware(g, quick=True).specs]
+    specs += hardware_combined(quick=True).specs
     keys = {dict(s.labels)["metric"]: set() for s in specs}
     for s in specs:
         keys[dict(s.labels)["metric"]].add(S.controller_key(s.config))

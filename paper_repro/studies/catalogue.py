@@ -5,6 +5,7 @@ the flights against RotorPy towards hardware)."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -354,19 +355,27 @@ def hardware_spec(seed: int, metric: str, changes: dict, tag: str, steps: int,
     return dataclasses.replace(spec, labels=spec.labels + labels)
 
 
-def hardware(quick: bool = False, scenes: int | None = None,
+HARDWARE_GROUPS = {"hardware_vehicle": ("motor_lag", "rotor_drag", "thrust", "mass",
+                                         "com_offset"),
+                   "hardware_air_latency": ("wind", "gust", "estimation", "delay")}
+"""The effects of :data:`EFFECTS` by study: what the vehicle is (its motors, drag and
+parameters), and what it flies in and through (the air, the estimate, the delay). Each study
+also flies the baseline it is paired with, and lands on its own (about 1,200 passages each)."""
+
+
+def hardware(group: str, quick: bool = False, scenes: int | None = None,
              base: Config | None = None) -> Study:
     """Towards hardware, one effect at a time: ``scenes`` random passages (50; 1 with
     ``quick``) × both metrics against RotorPy, with every effect off (``effect`` ``"none"``,
-    the baseline the cells are paired with) and with each effect of :data:`EFFECTS` alone at
-    each level; the latencies (:data:`REMEDIED`) once more with the remedy
-    (``remedy`` ``"compensated"``). What breaks first, and does the smoothed metric keep its
-    smooth thrusts?"""
+    the baseline the cells are paired with) and with each effect of the study ``group`` of
+    :data:`HARDWARE_GROUPS` alone at each level of :data:`EFFECTS`; the latencies
+    (:data:`REMEDIED`) once more with the remedy (``remedy`` ``"compensated"``). What breaks
+    first, and does the smoothed metric keep its smooth thrusts?"""
     n, base, steps = _passages(quick, scenes, 50, base)
     steps = QUICK_STEPS if quick else HARDWARE_STEPS
     cells = [("none", 0.0, "off", {}, "none")]
-    for effect, levels in EFFECTS.items():
-        for level, name, changes in levels:
+    for effect in HARDWARE_GROUPS[group]:
+        for level, name, changes in EFFECTS[effect]:
             cells.append((effect, level, name, changes, "none"))
             if effect in REMEDIED:
                 cells.append((effect, level, name, {**changes, "compensate_latency": True},
@@ -378,9 +387,11 @@ def hardware(quick: bool = False, scenes: int | None = None,
                                          ("level_name", name), ("remedy", remedy)))
              for effect, level, name, changes, remedy in cells
              for metric in ("smooth", "euclidean") for seed in range(n)]
-    return Study("hardware" + ("-quick" if quick else ""), tuple(specs),
+    return Study(group + ("-quick" if quick else ""), tuple(specs),
                  f"{n} random passages x both metrics against RotorPy: every effect off, "
-                 f"each of {tuple(EFFECTS)} alone per level, the latencies compensated")
+                 f"each of {HARDWARE_GROUPS[group]} alone per level"
+                 + (", the latencies compensated" if set(REMEDIED) & set(HARDWARE_GROUPS[group])
+                    else ""))
 
 
 def hardware_combined(quick: bool = False, scenes: int | None = None,
@@ -409,7 +420,9 @@ STUDIES: dict[str, Callable[..., Study]] = {"monte_carlo": monte_carlo, "eta_swe
                                             "sensing_window": sensing_window,
                                             "moving_obstacles": moving_obstacles,
                                             "timeline": timeline_flights,
-                                            "guidance": guidance, "hardware": hardware,
+                                            "guidance": guidance,
+                                            **{g: functools.partial(hardware, g)
+                                               for g in HARDWARE_GROUPS},
                                             "hardware_combined": hardware_combined}
 """The studies ``python -m paper_repro study NAME`` knows."""
 
