@@ -105,4 +105,5 @@ def test_a_quick_cell_flies_against_rotorpy_and_reports_the_plant_columns(tmp_pa
     assert (table["status"] == "ok").all(), table["error"].tolist()
     assert {"saturation_time_s", "body_rate_rms_rad_s", "margin_time_s",
             "calls_over_ts"} <= set(table.columns)
-    assert (table["steps"] == 150).all() and np.isfinite(table["body_rate_rms_rad_s"]).all()
+    # (a run may end early: every effect at once can bring the vehicle to the ground)
+    assert (table["steps"] <= 150).all() and np.isfinite(table["body_rate_rms_rad_s"]).all()
