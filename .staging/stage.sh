@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Stage what a patched clone has made: its golden flights, every evidence set it no longer
-# lists as stale, and the fidelity flights of the windows it has begun (with their lead-in).
+# lists as stale, and, until the fidelity set is made, the fidelity flights of the windows
+# it has begun (with their lead-in).
 #   bash .staging/stage.sh /tmp/next      (run from this repository's root)
 set -euo pipefail
 clone=$(cd "$1" && pwd)
@@ -22,7 +23,7 @@ shutil.rmtree(out / "golden", ignore_errors=True)
 shutil.copytree("figures/golden", out / "golden")
 print("staged golden")
 PY
-if [ -d results/fidelity ]; then
+if [ -d results/fidelity ] && [ ! -f "$staging/figures/fidelity/evidence.json" ]; then
   mkdir -p "$staging/results/fidelity"
   for w in results/fidelity/*/; do
     n=$(ls "$w" | grep -vc '^lead-in$' || true)
