@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Stage what a patched clone has made: its golden flights, every evidence set it no longer
 # lists as stale, and, until the fidelity set is made, the fidelity flights of the windows
-# it has begun (with their lead-in).
+# it has begun (with their lead-in); until moving_levers is made, its groups saved whole
+# (results/levers, read back by benchmarks/moving_levers.py).
 #   bash .staging/stage.sh /tmp/next      (run from this repository's root)
 set -euo pipefail
 clone=$(cd "$1" && pwd)
@@ -33,4 +34,9 @@ if [ -d results/fidelity ] && [ ! -f "$staging/figures/fidelity/evidence.json" ]
       echo "staged fidelity $(basename "$w") ($n flights)"
     fi
   done
+fi
+if [ -d results/levers ] && [ ! -f "$staging/figures/studies/moving_levers/evidence.json" ]; then
+  rm -rf "$staging/results/levers" && mkdir -p "$staging/results"
+  cp -r results/levers "$staging/results/levers"
+  echo "staged levers ($(ls results/levers | wc -l) groups)"
 fi
