@@ -8,6 +8,8 @@ cost."""
 
 from __future__ import annotations
 
+import paper_repro._blas  # noqa: F401  (before NumPy: one OpenBLAS kernel)
+
 import numpy as np
 
 PASSES = 2

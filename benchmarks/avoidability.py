@@ -17,6 +17,8 @@ Prints one row per crossing and the share of avoidable ones; ``--save`` writes
 
 from __future__ import annotations
 
+import paper_repro._blas  # noqa: F401  (before NumPy: one OpenBLAS kernel)
+
 import argparse
 import time
 

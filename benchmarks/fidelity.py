@@ -27,6 +27,8 @@ flown into the committed tables and keeps the others (their flights are the same
 
 from __future__ import annotations
 
+import paper_repro._blas  # noqa: F401  (before NumPy: one OpenBLAS kernel)
+
 import argparse
 import dataclasses
 import sys

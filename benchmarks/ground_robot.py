@@ -18,6 +18,8 @@ formatted from it), the solve times to ``ground_robot_timings.csv`` (this machin
 
 from __future__ import annotations
 
+import paper_repro._blas  # noqa: F401  (before NumPy: one OpenBLAS kernel)
+
 import argparse
 import sys
 

@@ -17,6 +17,8 @@ by tens of percent between runs) and the stamp. Numbers only, no thresholds.
 
 from __future__ import annotations
 
+import paper_repro._blas  # noqa: F401  (before NumPy: one OpenBLAS kernel)
+
 import argparse
 import dataclasses
 import functools

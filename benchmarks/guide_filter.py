@@ -19,6 +19,8 @@ medians of the ratios to no filter), stamped with the guide layer's golden hash.
 
 from __future__ import annotations
 
+import paper_repro._blas  # noqa: F401  (before NumPy: one OpenBLAS kernel)
+
 import argparse
 import dataclasses
 import functools

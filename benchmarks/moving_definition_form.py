@@ -9,6 +9,8 @@ clearance and thrust variation per barrier (the paper's margin, the design's) an
 
 from __future__ import annotations
 
+import paper_repro._blas  # noqa: F401  (before NumPy: one OpenBLAS kernel)
+
 import argparse
 import dataclasses
 

@@ -22,6 +22,8 @@ cache (``results/runs``; fly them first: ``python -m paper_repro study moving_ob
 
 from __future__ import annotations
 
+import paper_repro._blas  # noqa: F401  (before NumPy: one OpenBLAS kernel)
+
 import argparse
 
 import numpy as np

@@ -30,6 +30,8 @@ machine's times), then the stamp.
 
 from __future__ import annotations
 
+import paper_repro._blas  # noqa: F401  (before NumPy: one OpenBLAS kernel)
+
 import argparse
 import collections
 import json
@@ -109,7 +111,8 @@ def _timed_lines() -> tuple[int, int]:
     lines, first = inspect.getsourcelines(simulate)
     start = next(first + i for i, line in enumerate(lines)
                  if "wall = time.perf_counter()" in line)
-    end = next(first + i for i, line in enumerate(lines) if 'meta["wall_time_s"]' in line)
+    end = next(first + i for i, line in enumerate(lines)
+               if "wall_time_s" in line and first + i > start)
     return start, end
 
 

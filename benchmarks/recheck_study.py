@@ -23,6 +23,8 @@ as this commit's.
 
 from __future__ import annotations
 
+import paper_repro._blas  # noqa: F401  (before NumPy: one OpenBLAS kernel)
+
 import argparse
 import json
 import sys

@@ -15,6 +15,8 @@ them come from the same distribution", the minimum clearance and the mission's o
 
 from __future__ import annotations
 
+import paper_repro._blas  # noqa: F401  (before NumPy: one OpenBLAS kernel)
+
 import argparse
 import dataclasses
 import json

@@ -19,6 +19,8 @@ machine's), then the stamp; the book's speed tables are formatted from them.
 
 from __future__ import annotations
 
+import paper_repro._blas  # noqa: F401  (before NumPy: one OpenBLAS kernel)
+
 import argparse
 import dataclasses
 import platform
@@ -89,7 +91,8 @@ def main() -> None:
         if ref is not None:
             k = min(len(ref.x), len(r.x))
             dev = float(np.max(np.linalg.norm(r.x[:k, :3] - ref.x[:k, :3], axis=1)))
-        rows.append({"solver": name, "steps": r.steps, "median_ms": float(np.median(ms)),
+        rows.append({"solver": name, "steps": r.steps, "outcome": r.outcome,
+                     "median_ms": float(np.median(ms)),
                      "p95_ms": float(np.percentile(ms, 95)),
                      "p99_ms": float(np.percentile(ms, 99)), "max_ms": float(ms.max()),
                      "iterations_median": float(np.median(r.iterations)),
@@ -102,7 +105,8 @@ def main() -> None:
     print(f"\n{args.scenario} ({prediction} prediction), {args.metric} metric, {args.steps} steps, "
           f"{platform.processor() or platform.machine()} ({_cpu_name()}), "
           f"{__import__('os').cpu_count()} cores")
-    print_table(rows, [("solver", "solver", "s"), ("median_ms", "median ms", ".2f"),
+    print_table(rows, [("solver", "solver", "s"), ("outcome", "outcome", "s"),
+                       ("median_ms", "median ms", ".2f"),
                        ("p95_ms", "p95 ms", ".2f"), ("p99_ms", "p99 ms", ".2f"),
                        ("max_ms", "max ms", ".2f"), ("iterations_median", "iters", ".0f"),
                        ("failures", "failures", "d"), ("ipm_qps", "ipm QPs", "d"),

@@ -19,6 +19,8 @@ interior point's iterations) and ``tails.csv`` (the timings), stamped.
 
 from __future__ import annotations
 
+import paper_repro._blas  # noqa: F401  (before NumPy: one OpenBLAS kernel)
+
 import argparse
 import dataclasses
 
@@ -90,7 +92,7 @@ def _fly(cfg, scene) -> dict:
     iterations = np.asarray(counted[0].ipm_iterations)
     iterations = iterations[iterations > 0]
     counts = result.meta.get("qp_counts", {})
-    return {"steps": result.steps, "passes": PASSES,
+    return {"steps": result.steps, "outcome": result.outcome, "passes": PASSES,
             "median_ms": float(np.median(ms)), "p99_ms": float(np.percentile(ms, 99)),
             "max_ms": float(ms.max()), "over_ts": int((ms > ts_ms).sum()),
             "least_p99_ms": float(np.percentile(least, 99)),
@@ -127,7 +129,7 @@ def main() -> None:
     if args.save:
         out = paths.figures_dir() / "solver_speed" / "swept_pillar"
         out.mkdir(parents=True, exist_ok=True)
-        flight = ["variant", "steps", "min_clearance_m", "ipm_qps", "hpipm_qps",
+        flight = ["variant", "steps", "outcome", "min_clearance_m", "ipm_qps", "hpipm_qps",
                   "ipm_iterations_median", "ipm_iterations_p99", "ipm_iterations_max"]
         table[flight].to_csv(out / "pillar.csv", index=False, float_format="%.6g")
         table.drop(columns=flight[1:]).to_csv(out / "tails.csv", index=False,

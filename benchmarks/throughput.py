@@ -6,6 +6,8 @@ Flies ``paper_repro.sim.loop.simulate`` for ``--steps`` steps (or until the miss
 one core, then two such flights at once in two processes (``multiprocessing``, spawn). One
 step is everything the loop does: LiDAR scan, controller, plant integration, logging. The
 compile caches are warmed and the controllers built before any timing; each flight starts
+import paper_repro._blas  # noqa: F401  (before NumPy: one OpenBLAS kernel)
+
 from a controller that has flown a few steps and was then reset.
 
 The table gives, per run: steps, wall time, steps/s, ms per step, CPU ms per step (the

@@ -25,6 +25,7 @@ Around it, each layer importing only the layers above it in this list:
 The names below are the ones the README, the book and the notebooks use.
 """
 
+import paper_repro._blas  # noqa: F401, I001  (first: it asks OpenBLAS for one kernel)
 from importlib.metadata import version
 
 from paper_repro.config import (

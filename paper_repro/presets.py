@@ -90,8 +90,8 @@ PRESETS: dict[str, Preset] = {
         "mission within 10 % of the paper's 500 s (notebook 11_timeline)", _paper_timeline),
     "moving-design": Preset(
         "moving-design", "the barrier this package proposes for regions predicted to move "
-        "(MOVING_DESIGN for the metric, a 0.015 s prediction step), as the moving study flies "
-        "it; a static prediction becomes kalman", _moving_design),
+        "(MOVING_DESIGN for the metric, a 0.015 s prediction step, a 0.5 m floor), as the "
+        "moving study flies it; a static prediction becomes kalman", _moving_design),
 }
 """Every preset by name; ``paper`` is the default."""
 
@@ -159,12 +159,24 @@ whether a region came within the LiDAR's range (``encounters``), so that a clear
 no region is not read as an avoidance."""
 
 
+MOVING_FLOOR = 0.5
+"""m, the lowest altitude of the design's 𝒳 (the paper's is the ground, z ≥ 0). A region
+that passes over the UAV pushes its plan down. On the paper's 𝒳 the plan then rides the
+ground: a plan that touches z = 0 on the prediction grid, with all four thrusts cut, leaves
+the vehicle falling faster than the next linearised QP can stop above the ground. The design
+dodges down to this floor and no lower; the passages fly at 2-8 m."""
+
+
 def moving_design_controller(config: Config, metric: str) -> Config:
     """``config`` with the design's controller: the barrier of :data:`MOVING_DESIGN` for
-    ``metric`` and the prediction step :data:`MOVING_PREDICTION_TS`."""
+    ``metric``, the prediction step :data:`MOVING_PREDICTION_TS` and the floor
+    :data:`MOVING_FLOOR`."""
+    lower = list(config.nmpc.state_lower)
+    lower[2] = MOVING_FLOOR
     return dataclasses.replace(
         config, barrier=dataclasses.replace(config.barrier, **MOVING_DESIGN[metric]),
-        nmpc=dataclasses.replace(config.nmpc, prediction_ts=MOVING_PREDICTION_TS))
+        nmpc=dataclasses.replace(config.nmpc, prediction_ts=MOVING_PREDICTION_TS,
+                                 state_lower=tuple(lower)))
 
 
 def moving_design(config: Config, metric: str) -> Config:

@@ -100,3 +100,12 @@ def test_the_margin_is_the_largest_level_below_the_first_with_a_collision():
     # Clopper-Pearson: 0 of 4 bounds the rate below 1 - 0.025^(1/4) = 0.60
     assert wind["worst_high"] == pytest.approx(1 - 0.025 ** 0.25)
     assert set(m.index.get_level_values("effect")) == {"delay", "lag", "wind"}
+
+
+def test_a_flight_into_the_ground_breaks_the_margin_as_a_collision_does():
+    rows = [r for level in (1.0, 2.0) for r in _cell_rows("lag", level, "smooth", 0)]
+    rows[-1].update(outcome="left_workspace", completed=False)  # level 2: one into the ground
+    m = A.margins(pd.DataFrame(rows)).set_index(["effect", "metric"])
+    assert (m.loc[("lag", "smooth"), ["margin", "first_failure"]] == [1.0, 2.0]).all()
+    by_collision = A.margins(pd.DataFrame(rows), event="collision")
+    assert by_collision["margin"].iloc[0] == 2.0 and np.isnan(by_collision["first_failure"].iloc[0])

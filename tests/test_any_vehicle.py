@@ -173,9 +173,9 @@ def test_an_object_without_a_step_is_refused_as_a_plant():
 
 
 def test_a_converged_cold_start_gives_the_reference_plan_in_one_solve():
-    """From rest 1.5 m before the wall, one ``solve`` with ``cold_start="converged"`` returns
-    IPOPT's plan (within 1 mm, the issue's bound is 5 cm); the default one Gauss-Newton step
-    from rest stops centimetres short of it."""
+    """From rest 1.5 m before the wall, one ``solve`` of the default controller
+    (``cold_start="converged"``) returns IPOPT's plan within 1 mm; one Gauss-Newton step from
+    rest (``cold_start="rti"``) stops centimetres short of it."""
     from paper_repro.world.lidar import Lidar
 
     model = point_mass()
@@ -189,8 +189,8 @@ def test_a_converged_cold_start_gives_the_reference_plan_in_one_solve():
     assert sum(len(v) for v in visible) > 0
     reference = solver(nlp_solver="reference").solve(x0, target, visible)
     assert reference.success
-    converged = solver(cold_start="converged").solve(x0, target, visible)
-    one_step = solver().solve(x0, target, visible)
+    converged = solver().solve(x0, target, visible)
+    one_step = solver(cold_start="rti").solve(x0, target, visible)
     assert converged.status == "converged" and converged.iterations > 1
     gap = np.abs(converged.x[:, :3] - reference.x[:, :3]).max()
     assert gap < 1e-3

@@ -1,13 +1,14 @@
 """A damaged cache entry never crashes a run or passes for a result: it is named, moved
 aside and flown again, and what is flown again is the run a fresh cache gives."""
 
+import dataclasses
 import json
 import warnings
 
 import numpy as np
 import pytest
 
-from paper_repro import Config, NMPCParams, SimulationParams
+from paper_repro import Config, NMPCParams, SimulationParams, SolverParams
 from paper_repro._native import DamagedLibraryWarning, cache_dir, load_library
 from paper_repro.sim.result import MANIFEST, DamagedResult, SimulationResult, verify_result
 from paper_repro.studies import Study, run_study
@@ -194,15 +195,20 @@ def test_rekey_keeps_a_result_of_the_former_layout_and_only_one_it_can_prove(tmp
     from paper_repro.evidence.golden import golden_hash
     from paper_repro.studies.runs import rekey
 
+    # a run the former code could fly: the settings added since at the values they were
+    # added with (config_history.ADDED), which its layout leaves out
+    spec = dataclasses.replace(SPEC, config=dataclasses.replace(
+        CONFIG, solver=SolverParams(relaxed_qp=False, cold_start="rti", shared_barrier=False),
+        simulation=dataclasses.replace(CONFIG.simulation, workspace_exit=None)))
     runs = tmp_path / "runs"
-    out, flown = ensure_result(SPEC, runs, progress=False)
+    out, flown = ensure_result(spec, runs, progress=False)
     assert flown
     before = SimulationResult.load(out)
     old = _as_written_by_former_code(out, golden_hash())
     assert not out.exists()
     assert rekey(runs) == {"moved": 1, "current": 0, "unproven": 0, "duplicate": 0,
                            "damaged": 0}
-    again, flown = ensure_result(SPEC, runs, progress=False)
+    again, flown = ensure_result(spec, runs, progress=False)
     assert again == out and not flown and not old.exists()
     after = SimulationResult.load(again)
     assert after.config == before.config and np.array_equal(after.x, before.x)
@@ -210,4 +216,4 @@ def test_rekey_keeps_a_result_of_the_former_layout_and_only_one_it_can_prove(tmp
 
     other = _as_written_by_former_code(again, "another-golden-set")
     assert rekey(runs)["unproven"] == 1 and other.exists()
-    assert ensure_result(SPEC, runs, progress=False)[1]  # flown again, under today's key
+    assert ensure_result(spec, runs, progress=False)[1]  # flown again, under today's key

@@ -256,14 +256,14 @@ def test_a_machine_copy_stands_only_for_the_committed_file_it_was_flown_for(tmp_
     monkeypatch.setenv(paths.ROOT_ENV, str(tmp_path))
     folder, name = paths.golden_dir(), "paper-smooth"
     main = folder / f"{name}.npy"
-    copy_dir = folder / golden.MACHINES / "c-test_numpy-test"
+    copy_dir = folder / golden.MACHINES / "c-test_blas-test"
     copy_dir.mkdir(parents=True)
     copy = copy_dir / f"{name}.npy"
     np.save(copy, np.load(main) + 1e-3)
     entry = {"of": golden.sha256_of(main), "sha256": golden.sha256_of(copy)}
     (copy_dir / "copies.json").write_text(json.dumps({"files": {name: entry}}))
 
-    monkeypatch.setattr(golden, "machine_signature", lambda: "c-test_numpy-test")
+    monkeypatch.setattr(golden, "machine_signature", lambda: "c-test_blas-test")
     assert golden.reference_path(name) == copy
     assert golden.reference_path("paper-euclidean") == folder / "paper-euclidean.npy"
     np.save(copy, np.load(copy) + 1e-3)  # changed by hand: no longer the recorded copy
@@ -279,11 +279,55 @@ def test_a_machine_copy_stands_only_for_the_committed_file_it_was_flown_for(tmp_
         golden.write_machine_copies([name])
 
 
-def test_the_machine_signature_names_the_c_and_numpys_instruction_sets():
+def test_the_machine_signature_names_the_c_level_and_the_blas_kernel():
+    from paper_repro import _blas
     from paper_repro._native import arch_flags
     from paper_repro.evidence.golden import golden_signature, machine_signature
 
-    c, numpy_level = machine_signature().split("_numpy-")
+    c, kernel = machine_signature().split("_blas-")
     assert c == "c-" + arch_flags()[0].removeprefix("-march=")
-    assert numpy_level in ("x86-64-v4", "x86-64-v3", "baseline")
-    assert golden_signature().startswith("c-") and "_numpy-" in golden_signature()
+    assert kernel == (_blas.numpy_kernel() or "other")
+    assert golden_signature().startswith("c-") and "_blas-" in golden_signature()
+
+
+def _kernel_in_a_new_process(code: str, **env) -> str:
+    import os
+    import subprocess
+    import sys
+
+    environ = {k: v for k, v in os.environ.items() if k != "PAPER_REPRO_BLAS"} | env
+    done = subprocess.run([sys.executable, "-c", code], env=environ, capture_output=True,
+                          text=True, timeout=120)
+    return (done.stdout + done.stderr).strip()
+
+
+def test_importing_paper_repro_first_pins_one_blas_kernel():
+    from paper_repro import _blas
+
+    assert _blas.wanted_kernel(frozenset({"avx2", "fma", "avx512f"})) == "Haswell"
+    assert _blas.wanted_kernel(frozenset({"sse2", "avx", "avx2"})) is None
+    wanted = _blas.wanted_kernel()
+    if wanted is None:
+        pytest.skip("OpenBLAS chooses alone on this CPU (not Linux x86-64 with AVX2 and FMA)")
+    show = "import paper_repro._blas as b; print(b.numpy_kernel())"
+    assert _kernel_in_a_new_process(show, OPENBLAS_CORETYPE="Sandybridge") == wanted
+    assert _kernel_in_a_new_process(show, PAPER_REPRO_BLAS="Sandybridge") == "Sandybridge"
+    assert _kernel_in_a_new_process(show, PAPER_REPRO_BLAS="system",
+                                    OPENBLAS_CORETYPE="Sandybridge") == "Sandybridge"
+    # NumPy loaded first keeps the kernel the environment gave it: no evidence is stamped.
+    late = ("import numpy; import paper_repro._blas as b\n"
+            "try:\n    b.check_kernel(); print('stamped')\n"
+            "except RuntimeError as e:\n    print('refused', e)")
+    said = _kernel_in_a_new_process(late, OPENBLAS_CORETYPE="Sandybridge")
+    assert said.startswith("refused") and "OPENBLAS_CORETYPE" in said
+
+
+def test_a_run_flown_with_another_blas_kernel_is_cached_under_another_key(monkeypatch):
+    from paper_repro import Config, _blas
+    from paper_repro.studies.runs import run_key
+
+    asked = run_key(Config(), 100, "scene")
+    monkeypatch.setattr(_blas, "other_kernel", lambda: "Sandybridge")
+    other = run_key(Config(), 100, "scene")
+    monkeypatch.setattr(_blas, "other_kernel", lambda: "Zen")
+    assert len({asked, other, run_key(Config(), 100, "scene")}) == 3

@@ -155,8 +155,8 @@ def test_the_guide_off_keeps_every_key_and_on_enters_it():
     for part, name in ADDED:  # the parts added whole (the guide, the tracker), then settings
         if name is None:
             del before[part]
-    for part, name in ADDED:
-        if name is not None and part in before:
+    for (part, name), value in ADDED.items():  # a setting at the value it was added with
+        if name is not None and part in before and before[part][name] == value:
             del before[part][name]
     assert cfg.key_dict() == before and Config.from_dict(before) == cfg
     guided = Config(sensor=SensorParams(map_voxel=0.5), guide=GuideParams(planner="grid"))

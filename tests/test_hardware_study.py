@@ -15,6 +15,7 @@ from paper_repro.studies.catalogue import (
     HARDWARE_GROUPS,
     HARDWARE_STEPS,
     REMEDIED,
+    REMEDIES,
     hardware,
     hardware_combined,
     make_study,
@@ -47,7 +48,7 @@ def test_each_effect_alone_at_each_level_on_the_same_passages_for_both_metrics(g
     expected = {("none", 0.0, "none")} | {
         (effect, level, remedy) for effect in HARDWARE_GROUPS[group]
         for level, _, _ in EFFECTS[effect]
-        for remedy in (("none", "compensated") if effect in REMEDIED else ("none",))}
+        for remedy in (("none", REMEDIED[effect]) if effect in REMEDIED else ("none",))}
     assert set(cells) == expected
     for by_metric in cells.values():  # paired: the same three passages with both metrics
         assert by_metric == {"smooth": [0, 1, 2], "euclidean": [0, 1, 2]}
@@ -62,23 +63,27 @@ def test_each_effect_alone_at_each_level_on_the_same_passages_for_both_metrics(g
                        if getattr(plant, f.name) != getattr(baseline, f.name)}
             settings = dict(next(c for v, _, c in EFFECTS.get(effect, ()) if v == level)
                             ) if effect != "none" else {}
-            assert changed == set(settings) | ({"compensate_latency"} if remedy != "none"
-                                               else set())
+            assert changed == set(settings) | (set(REMEDIES[remedy](settings))
+                                               if remedy != "none" else set())
+            if remedy == "lag compensated":  # the lag inverted for its own time constant
+                assert plant.motor_lag_compensation == plant.motor_lag
     for levels in EFFECTS.values():  # the levels rise with the severity
         values = [v for v, _, _ in levels]
         assert values == sorted(values) and len(set(values)) == len(values)
 
 
-def test_every_effect_at_once_on_300_passages_and_the_remedy_on_the_first_50():
+def test_every_effect_at_once_on_300_passages_and_every_remedy_on_the_first_50():
     cells, plants = _cells(hardware_combined())
     assert set(cells) == {("combined", float(i + 1), r) for i in range(len(COMBINED))
-                          for r in ("none", "compensated")}
+                          for r in ("none", "all")}
     for (_, level, remedy), by_metric in cells.items():
         n = 300 if remedy == "none" else 50
         assert by_metric == {"smooth": list(range(n)), "euclidean": list(range(n))}
         name = list(COMBINED)[int(level) - 1]
         plant = plants[("combined", level, remedy)][7]
-        assert plant.compensate_latency == (remedy == "compensated")
+        assert plant.compensate_latency == (remedy == "all")
+        assert (plant.hover_thrust_time is not None) == (remedy == "all")
+        assert plant.motor_lag_compensation == (plant.motor_lag if remedy == "all" else None)
         for setting, value in COMBINED[name].items():
             assert getattr(plant, setting) == value
 

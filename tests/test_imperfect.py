@@ -170,11 +170,13 @@ def test_the_command_line_names_the_plant():
     COMMANDS["run"].add_arguments(parser)
     args = parser.parse_args(["--out", "unused", "--plant", "rotorpy", "--motor-lag", "0.03",
                               "--rotor-drag", "1e-4", "--wind", "3", "--turbulence", "light",
-                              "--estimation", "vio", "--delay", "2",
+                              "--estimation", "vio", "--delay", "2", "--hover-thrust", "2",
+                              "--motor-lag-compensation", "0.03",
                               "--set", "plant.seed=4"])
     assert run_config(args).plant == PlantParams(
         simulator="rotorpy", motor_lag=0.03, rotor_drag=1e-4, wind=(0.0, 3.0, 0.0),
-        turbulence="light", estimation="vio", delay_steps=2, seed=4)
+        turbulence="light", estimation="vio", delay_steps=2, hover_thrust_time=2.0,
+        motor_lag_compensation=0.03, seed=4)
     with pytest.raises(ValueError, match="--motor-lag -0.1.*motor_lag must be"):
         run_config(parser.parse_args(["--out", "unused", "--plant", "rotorpy",
                                       "--motor-lag", "-0.1"]))
@@ -216,3 +218,110 @@ def test_a_gust_timed_by_clearance_starts_where_the_vehicle_first_comes_that_clo
     with pytest.raises(ValueError, match="needs the scene"):
         plant_for(quadrotor_model(), Config(plant=PlantParams(
             simulator="rotorpy", rotor_drag=1e-4, gust=(0.0, 2.0, 0.0), gust_clearance=1.0)))
+
+
+class WeakRotors:
+    """Our quadrotor whose rotors make ``scale`` times the thrust commanded."""
+
+    def __init__(self, scale):
+        self.plant, self.scale = QuadrotorPlant(ENCOUNTER.quadrotor, ENCOUNTER.nmpc.ts), scale
+
+    def step(self, x, u):
+        return self.plant.step(x, self.scale * np.asarray(u, float))
+
+
+def _hover(scale, latency, delay, seconds=12.0, tau=1.0):
+    """Send the nominal hover thrusts for ``seconds`` through the estimate; (wrapper, states)."""
+    from paper_repro.sim.imperfect import HoverThrustEstimate
+
+    model = quadrotor_model()
+    rest = model.rest(np.zeros(12))[1]
+    x = np.zeros(12)
+    x[2] = 5.0
+    plant = EstimatedState(WeakRotors(scale), np.zeros(12), latency)
+    if delay:
+        plant = DelayedInput(plant, delay, rest)
+    q = ENCOUNTER.quadrotor
+    plant = HoverThrustEstimate(plant, ENCOUNTER.nmpc.ts, q.mass, q.gravity, tau,
+                                (model.input_lower, model.input_upper), latency + delay, rest)
+    plant.reset(x)
+    states = [x]
+    for _ in range(int(round(seconds / ENCOUNTER.nmpc.ts))):
+        plant.measure(x)
+        x = plant.step(x, rest)
+        states.append(x)
+    return plant, np.array(states)
+
+
+@pytest.mark.parametrize("latency, delay", [(0, 0), (2, 1)])
+@pytest.mark.parametrize("scale", [0.9, 1.1])
+def test_the_hover_thrust_estimate_learns_the_missing_thrust_and_stops_the_sag(scale, latency,
+                                                                              delay):
+    """Rotors that make 90 % (110 %) of the thrust: the estimate tends to 0.9 (1.1), whatever
+    the latency, and the vehicle held at the nominal hover thrusts stops accelerating."""
+    plant, x = _hover(scale, latency, delay)
+    assert plant.estimate == pytest.approx(scale, rel=1e-3)
+    vz = x[:, 8]
+    assert abs(vz[-1] - vz[-101]) < 1e-3 * abs(vz[100] - vz[0])  # the last second vs the first
+    _, drift = _hover(scale, latency, delay, seconds=12.0, tau=1e9)  # (practically) off
+    assert abs(drift[-1, 8] - drift[-101, 8]) > 1e3 * abs(vz[-1] - vz[-101])
+
+
+def test_the_hover_thrust_estimate_stays_at_one_on_the_nominal_vehicle():
+    plant, x = _hover(1.0, 1, 1, seconds=3.0)
+    assert plant.estimate == pytest.approx(1.0, abs=1e-9)
+    np.testing.assert_allclose(x[-1, :3], x[0, :3], atol=1e-6)
+
+
+def test_the_hover_thrust_setting_wraps_the_plant_outside_the_delay():
+    from paper_repro.sim.imperfect import HoverThrustEstimate
+
+    cfg = Config(plant=PlantParams(estimation="mocap", delay_steps=1, hover_thrust_time=2.0))
+    plant = plant_for(quadrotor_model(), cfg)
+    assert isinstance(plant, HoverThrustEstimate) and plant.latency == 2
+    assert isinstance(plant.plant, DelayedInput)
+    with pytest.raises(ValueError, match="hover_thrust_time"):
+        PlantParams(hover_thrust_time=0.0)
+
+
+class LaggingRotors:
+    """A first-order lag of time constant ``tau`` on each thrust, over steps of ``ts``: the
+    state is the thrust, x_next = a·x + (1 − a)·c with a = exp(−ts/tau) (exact for a held c)."""
+
+    def __init__(self, tau, ts=0.01):
+        self.a = np.exp(-ts / tau)
+
+    def step(self, x, c):
+        return self.a * np.asarray(x, float) + (1 - self.a) * np.asarray(c, float)
+
+
+def test_the_motor_lead_makes_lagging_rotors_follow_a_ramp_and_keeps_a_constant():
+    """A thrust ramp through a 50 ms lag trails by τ·slope; sent with the lead for τ̂ = τ it
+    trails by a sixth of that (what is left is the sampling's half step); a constant thrust is
+    sent as it is, and the lead never leaves the bounds."""
+    from paper_repro.sim.imperfect import MotorLagCompensation
+
+    tau, ts, slope = 0.05, 0.01, 2.0  # s, s, N/s
+    ramp = 5.0 + slope * ts * np.arange(200)
+    trail = {}
+    for lead in (False, True):
+        plant = LaggingRotors(tau, ts)
+        if lead:
+            plant = MotorLagCompensation(plant, ts, tau, ([0.0], [20.0]))
+        f = np.array([5.0])
+        for u in ramp:
+            f = plant.step(f, [u])
+        trail[lead] = ramp[-1] - f[0]
+    assert trail[False] == pytest.approx(slope * tau, rel=0.15)
+    assert abs(trail[True]) < trail[False] / 6
+    plant = MotorLagCompensation(LaggingRotors(tau, ts), ts, tau, ([0.0], [20.0]))
+    f = np.array([7.0])
+    for _ in range(5):
+        f = plant.step(f, [7.0])
+    assert f[0] == pytest.approx(7.0, abs=1e-12)
+    clipped = MotorLagCompensation(Recorder(), ts, tau, ([0.0], [8.0]))
+    clipped.step(np.zeros(1), [7.0])
+    clipped.step(np.zeros(1), [7.9])  # 7.9 + 5·0.9 = 12.4, clipped to the bound 8
+    assert clipped.plant.inputs[-1][0] == 8.0
+    with pytest.raises(ValueError, match="motor_lag_compensation"):
+        PlantParams(motor_lag_compensation=-0.05)

@@ -8,6 +8,7 @@ import pytest
 
 from paper_repro import Config
 from paper_repro.config import SimulationParams, TrackerParams
+from paper_repro.presets import MOVING_FLOOR, moving_design_controller
 from paper_repro.sim.perception import Perception
 from paper_repro.sim.termination import Termination
 from paper_repro.vehicles.quadrotor import quadrotor_model
@@ -72,7 +73,7 @@ def test_a_vehicle_beyond_the_workspace_by_more_than_workspace_exit_has_left_it(
     stop = _stop(workspace_exit=0.1)
     assert stop.after_step(0, _state(position, (1.0, 0.0, 0.0)), y, y) is leaves
     assert stop.outcome == ("left_workspace" if leaves else "step_limit")
-    off = _stop()  # the default: no such rule, the flight goes on
+    off = _stop(workspace_exit=None)  # no such rule: the flight goes on
     assert not off.after_step(0, _state(position, (1.0, 0.0, 0.0)), y, y)
 
 
@@ -82,10 +83,22 @@ def test_a_bad_workspace_exit_is_refused_by_name(value):
         SimulationParams(workspace_exit=value)
 
 
-def test_workspace_exit_at_its_default_keeps_the_run_key():
-    on = Config(simulation=SimulationParams(workspace_exit=0.0))
-    assert "workspace_exit" not in Config().key_dict()["simulation"]
-    assert on.key_dict()["simulation"]["workspace_exit"] == 0.0
+def test_the_workspace_is_the_world_box_not_the_floor_the_controller_keeps():
+    """The moving design keeps its plans 0.5 m above the ground; a vehicle below that floor
+    but above the ground is still inside the workspace."""
+    kalman = Config(nmpc=dataclasses.replace(Config().nmpc, prediction="kalman"))
+    cfg = moving_design_controller(kalman, "smooth")
+    assert cfg.nmpc.state_lower[2] == MOVING_FLOOR > 0
+    stop = Termination(cfg, TWO_TARGETS, quadrotor_model(cfg))
+    for z, leaves in ((0.2, False), (-0.01, True)):
+        y = np.array([0.0, 0.0, z])
+        assert stop.after_step(0, _state(tuple(y), (1.0, 0.0, 0.0)), y, y) is leaves
+
+
+def test_workspace_exit_enters_the_key_off_the_value_that_flew_before_it():
+    off = Config(simulation=SimulationParams(workspace_exit=None))
+    assert "workspace_exit" not in off.key_dict()["simulation"]
+    assert Config().key_dict()["simulation"]["workspace_exit"] == 0.0
 
 
 def test_the_tracker_is_tuned_from_the_configuration_and_keyed_only_off_its_defaults():

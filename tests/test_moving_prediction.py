@@ -188,7 +188,11 @@ def test_the_equilibrium_lookahead_is_checked_needs_a_prediction_and_keeps_every
                 nmpc=NMPCParams(prediction="oracle"))
     assert OCP(on).scan.equilibrium_lookahead == 2.0
     assert ("barrier", "equilibrium_lookahead") in ADDED
-    for cfg in (Config(), dataclasses.replace(on, barrier=BarrierParams())):
+    # Every setting added since at the value that flew before it (a part given empty takes
+    # them): such a run is keyed as before the settings existed.
+    neutral = Config.from_dict({"solver": {}, "simulation": {}})
+    for cfg in (neutral, dataclasses.replace(on, barrier=BarrierParams(), solver=neutral.solver,
+                                             simulation=neutral.simulation)):
         before = cfg.to_dict()
         for part, name in ADDED:  # the layout before the settings (and parts) added since
             if name is None:

@@ -195,9 +195,11 @@ def test_a_config_saved_before_the_solver_options_moved_loads_them_in_their_new_
     """A ``config.json`` of the former layout (solver options in ``nmpc``, the LiDAR's range
     and the prediction in ``simulation``) loads into ``solver``, ``sensor`` and ``nmpc``; a
     setting given in both places is refused rather than one of them silently dropped."""
+    # (the solver's settings added since hold the values that flew before them)
     new = Config(nmpc=NMPCParams(prediction="kalman"),
                  solver=SolverParams(nlp_solver="reference", sqp_iterations=3, line_search=True,
-                                     qp_solver="hpipm"),
+                                     qp_solver="hpipm", cold_start="rti", relaxed_qp=False,
+                                     shared_barrier=False),
                  sensor=SensorParams(range=4.5, dropout=0.1))
     old = new.to_dict()
     old["nmpc"].update(solver="reference", sqp_iterations=3, line_search=True,

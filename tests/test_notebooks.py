@@ -225,7 +225,9 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, executed
         # the crossing flown with each prediction, past the meeting (t = 8 s)
         crossing = pd.read_csv(figures / "moving_obstacles_crossing.csv")
         assert list(crossing["prediction"]) == list(PREDICTIONS)
-        assert (crossing["steps"] == 1500).all() and (crossing["min_clearance_m"] < 1.0).all()
+        # (a run may end before its 1,500 steps: without prediction it can leave the workspace)
+        assert (crossing["steps"] <= 1500).all() and (crossing["min_clearance_m"] < 1.0).all()
+        assert set(crossing["outcome"]) <= {"step_limit", "left_workspace", "completed"}
         assert crossing["t_closest_s"].between(7.0, 10.0).all()
         paired = pd.read_csv(figures / "moving_obstacles_paired.csv")
         assert set(paired["prediction"]) == {"oracle", "kalman"} and (paired["scenes"] == 2).all()

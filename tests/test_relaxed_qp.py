@@ -17,12 +17,12 @@ CONFIG = Config(simulation=SimulationParams(scenario="encounter"), nmpc=SMALL)
 
 @pytest.fixture(scope="module")
 def relaxed():
-    return RealTimeNMPC(CONFIG, capacities=(), relaxed_qp=True)
+    return RealTimeNMPC(CONFIG, capacities=(), relaxed_qp=True, cold_start="rti")
 
 
 @pytest.fixture(scope="module")
 def hard():
-    return RealTimeNMPC(CONFIG, capacities=())
+    return RealTimeNMPC(CONFIG, capacities=(), relaxed_qp=False, cold_start="rti")
 
 
 def _state(position, velocity=(0.0, 0.0, 0.0), roll=0.0, roll_rate=0.0):
@@ -74,6 +74,8 @@ def test_an_infeasible_qp_is_solved_with_slacks_and_reported_as_relaxed(hard, re
     assert sol.success and sol.status == "relaxed"
     assert relaxed.qp_counts["relaxed"] == before["relaxed"] + 1
     assert relaxed.qp_counts["failed"] == before["failed"]
+    # why the hard QP failed is kept: the same statuses the hard controller reports
+    assert relaxed.last_relaxation == hard.last_failure
     assert np.isfinite(sol.x).all() and np.isfinite(sol.u).all()
     lower, upper = relaxed.ocp.input_bounds
     assert (sol.u >= lower - 1e-6).all() and (sol.u <= upper + 1e-6).all()
@@ -102,16 +104,38 @@ def test_the_falling_vehicle_is_braked_towards_the_ground_bound(relaxed):
 
 
 def test_the_option_reaches_the_controller_from_the_config():
-    cfg = dataclasses.replace(CONFIG, solver=SolverParams(relaxed_qp=True))
-    ctl = make_controller(cfg, capacities=())
+    ctl = make_controller(CONFIG, capacities=())  # on by default
     assert ctl.qp.relaxed is not None and "relaxed" in ctl.qp_counts
-    assert make_controller(CONFIG, capacities=()).qp.relaxed is None
+    cfg = dataclasses.replace(CONFIG, solver=SolverParams(relaxed_qp=False))
+    assert make_controller(cfg, capacities=()).qp.relaxed is None
     with pytest.raises(ValueError, match="relaxed_qp"):
         SolverParams(relaxed_qp=1)
 
 
-def test_the_option_at_its_default_keeps_the_run_key():
-    """Off is how every committed flight was flown: it does not enter the run's key."""
-    on = dataclasses.replace(CONFIG, solver=SolverParams(relaxed_qp=True))
-    assert CONFIG.key_dict() != on.key_dict()
-    assert "relaxed_qp" not in CONFIG.key_dict().get("solver", {})
+def test_the_option_enters_the_run_key_off_the_value_that_flew_before_it():
+    """Off is how the flights before the option were flown: it stays out of the run's key,
+    so such a run keeps its key; on (the default) enters it."""
+    off = dataclasses.replace(CONFIG, solver=SolverParams(relaxed_qp=False))
+    assert CONFIG.key_dict() != off.key_dict()
+    assert "relaxed_qp" not in off.key_dict().get("solver", {})
+    assert CONFIG.key_dict()["solver"]["relaxed_qp"] is True
+
+
+def test_a_run_counts_the_causes_of_its_relaxed_and_its_failed_solves_apart():
+    """A flight that starts falling towards the ground: its first QPs have no solution. With the
+    relaxed QP, ``meta["qp_relaxations"]`` counts them by the hard QP's cause, one per relaxed
+    solve, and no solve fails; without, ``meta["qp_failures"]`` counts the failed ones."""
+    from paper_repro.sim.loop import simulate
+
+    runs = {}
+    for relaxed_qp in (True, False):
+        cfg = dataclasses.replace(CONFIG, solver=SolverParams(relaxed_qp=relaxed_qp,
+                                                              cold_start="rti"))
+        runs[relaxed_qp] = simulate(cfg, max_steps=5, initial_state=FALLING, progress=False)
+    relaxed, hard = runs[True], runs[False]
+    assert (relaxed.status == "relaxed").any() and relaxed.success.all()
+    assert sum(relaxed.meta["qp_relaxations"].values()) == int(np.sum(relaxed.status == "relaxed"))
+    assert "qp_failures" not in relaxed.meta
+    assert all("outside_state_box" in cause for cause in relaxed.meta["qp_relaxations"])
+    assert sum(hard.meta["qp_failures"].values()) == int(np.sum(hard.status == "qp_failed")) > 0
+    assert "qp_relaxations" not in hard.meta

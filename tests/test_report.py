@@ -62,3 +62,28 @@ def test_the_levers_table_keeps_every_run_of_its_csv():
         for cell, metric in zip(cells[3:5], ("smooth", "euclidean")):
             counts = [int(n) for n in re.match(r"([\d / ]+) of", cell)[1].split(" / ")]
             assert counts == g.loc[g["metric"] == metric, "collisions"].tolist()
+        assert cells[6] == f"{g['completed'].sum()}/{g['runs'].sum()}"
+
+
+def test_the_held_out_block_names_every_run_that_collides_or_does_not_complete():
+    """Each crossing and run the sentences name is one of the table's, and every such run of
+    the table is named."""
+    import re
+
+    import pandas as pd
+
+    from paper_repro import paths
+    from paper_repro.evidence import beyond
+
+    runs = pd.read_csv(paths.figures_dir() / "studies" / "moving_heldout" / "table.csv")
+    text = beyond.moving_heldout().split("\n\n", 1)[1]
+    named = {}
+    for part, sentence in zip(("collide", "ended"), text.split(". The runs")):
+        for seed, inside in re.findall(r"crossing (\d+) \(([^)]*)\)", sentence):
+            listed = inside.split(": ", 1)[1].split("; ")[0].split(", ")
+            named.setdefault(part, set()).update((int(seed), *p.split()) for p in listed)
+    hit = runs[runs["collision"].astype(bool)]
+    ended = runs[runs["outcome"] != "completed"]
+    for part, want in (("collide", hit), ("ended", ended)):
+        assert named.get(part, set()) == {(int(r.scene_seed), r.prediction, r.metric)
+                                          for r in want.itertuples()}, part

@@ -106,7 +106,9 @@ def test_riccati_and_hpipm_give_the_same_closed_loop(scene):
     np.testing.assert_allclose(runs["riccati"].x, runs["hpipm"].x, atol=1e-6)
     counts = runs["riccati"].meta["qp_counts"]
     assert counts["failed"] == 0 and counts["riccati"] >= 0.95 * 300
-    assert runs["hpipm"].meta["qp_counts"] == {"riccati": 0, "hpipm": 300, "failed": 0}
+    hpipm = runs["hpipm"].meta["qp_counts"]  # the converged cold start takes a few more QPs
+    assert hpipm["riccati"] == hpipm["relaxed"] == hpipm["failed"] == 0
+    assert hpipm["hpipm"] >= 300
 
 
 def test_the_interior_point_flies_the_same_closed_loop(scene):
@@ -294,7 +296,7 @@ def test_a_state_outside_x_is_flown_back_into_it_where_hard_bounds_had_no_plan(s
     x0, _ = equilibrium([-18.0, 0.0, 2.0])
     x0[9] = 3.1
     target = scene.targets[0]
-    hard = RealTimeNMPC(_config())
+    hard = RealTimeNMPC(_config(), relaxed_qp=False)
     hard.ocp.state_box = lambda x: hard.ocp.state_bounds  # no relaxation
     assert hard.solve(x0, target, ()).status == "qp_failed"
 
@@ -350,8 +352,8 @@ def test_line_search_changes_nothing_where_full_steps_descend(scene):
     near = dataclasses.replace(scene, start=(-18.6, 0.0, 2.0))
     cfg = _config()
     runs = {}
-    for line_search in (True, False):
-        ctl = RealTimeNMPC(cfg, line_search=line_search)
+    for line_search in (True, False):  # every instant one step, the first one too
+        ctl = RealTimeNMPC(cfg, line_search=line_search, cold_start="rti")
         runs[line_search] = simulate(cfg, controller=ctl, max_steps=300, progress=False,
                                      scene=near)
         assert ctl.step_counts["full"] == 300 and ctl.step_counts["shortened"] == 0
@@ -366,8 +368,8 @@ def test_line_search_stops_the_period_two_oscillation_on_a_crossing():
     cfg = Config(simulation=SimulationParams(scenario="crossing"),
                  nmpc=dataclasses.replace(SMALL, prediction="oracle"))
     jumps, clearance = {}, {}
-    for line_search in (True, False):
-        ctl = RealTimeNMPC(cfg, line_search=line_search)
+    for line_search in (True, False):  # every instant one step, the first one too
+        ctl = RealTimeNMPC(cfg, line_search=line_search, cold_start="rti")
         result = simulate(cfg, controller=ctl, max_steps=750, progress=False)
         assert result.failures == 0
         jumps[line_search] = int((np.abs(np.diff(result.u, axis=0)).max(axis=1) > 5.0).sum())

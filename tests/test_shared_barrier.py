@@ -42,7 +42,8 @@ def test_the_shared_barrier_gives_the_same_qp(metric, moving, rng):
     visible = Lidar(scene.clouds).scan(x0[:3])
     assert sum(map(len, visible)) > 0
     velocities = scene_velocities(scene, 0.0) if moving else None
-    p = np.concatenate([scene.targets[0], ocp.scan.pack(visible, ocp.output(x0), velocities)])
+    p = np.concatenate([scene.targets[0], ocp.scan.pack(visible, ocp.output(x0), velocities),
+                        ocp.runtime_values])
     guess = ocp.rest(x0)
     X = np.array(guess.x[1:]) + 0.01 * rng.standard_normal((ocp.horizon, 12))
     U, a = np.array(guess.u), ocp.parameters_of(guess.x_a, guess.u_a)
@@ -66,9 +67,13 @@ def test_a_closed_loop_with_the_shared_barrier_flies_the_same_path():
     assert np.abs(runs[0].x[:, :3] - runs[1].x[:, :3]).max() < 1e-8
 
 
-def test_the_option_reaches_the_controller_and_keeps_the_run_key():
-    on = dataclasses.replace(Config(), solver=SolverParams(shared_barrier=True))
-    assert "shared_barrier" not in Config().key_dict()["solver"]
-    assert on.key_dict()["solver"]["shared_barrier"] is True
+def test_the_option_reaches_the_controller_and_enters_the_key_when_on():
+    """Off is how the flights before the option were flown: such a run keeps its key; on
+    (the default) enters it."""
+    off = dataclasses.replace(Config(), solver=SolverParams(shared_barrier=False))
+    assert "shared_barrier" not in off.key_dict()["solver"]
+    assert Config().key_dict()["solver"]["shared_barrier"] is True
+    fn = RealTimeNMPC(Config(), compile=False, capacities=()).ladder.rungs[0][1]
+    assert fn.name().endswith("_shared")
     with pytest.raises(ValueError, match="shared_barrier"):
         SolverParams(shared_barrier="yes")

@@ -249,6 +249,27 @@ def test_an_interrupted_study_redoes_only_the_unfinished_runs(tmp_path):
                                   measured.drop(columns="result_dir"))
 
 
+
+def test_a_saved_study_is_read_back_only_for_exactly_its_runs(tmp_path):
+    """``saved_table`` returns the saved table without the run cache (another machine), and
+    nothing for other runs, other keys or a failed row."""
+    study = _study(1)
+    flown = S.run_study(study, out=tmp_path / "out", runs_dir=tmp_path / "runs", workers=0,
+                        progress=False, log=lambda line: None).table
+    (tmp_path / "runs").rename(tmp_path / "elsewhere")  # the cache is gone
+    saved = S.saved_table(study, tmp_path / "out")
+    pd.testing.assert_frame_equal(saved[flown.columns], flown)
+    assert S.saved_table(_study(2), tmp_path / "out") is None  # more runs
+    longer = Study(study.name, tuple(dataclasses.replace(s, max_steps=STEPS + 1)
+                                     for s in study.specs))
+    assert [s.key for s in longer.specs] != [s.key for s in study.specs]
+    assert S.saved_table(longer, tmp_path / "out") is None  # same names, other keys
+    assert S.saved_table(study, tmp_path / "nowhere") is None
+    table = pd.read_parquet(tmp_path / "out" / "table.parquet")
+    table.loc[0, "status"] = "failed"
+    table.to_parquet(tmp_path / "out" / "table.parquet", index=False)
+    assert S.saved_table(study, tmp_path / "out") is None  # a failed row is flown again
+
 def test_a_run_that_raises_inside_a_worker_is_a_failed_row(tmp_path, monkeypatch):
     """In-process Dask workers (threads) share the monkeypatched closed loop; the failure
     becomes a row with its message and the other runs complete."""

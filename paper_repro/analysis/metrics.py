@@ -239,8 +239,10 @@ def summary_row(result, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> dict:
       in a deadlock (see :class:`~paper_repro.config.SimulationParams`).
     * chattering over the whole run (:func:`chattering_metrics`), with the total variation
       also per second of flight (``tv_u_rate_N_per_s``), so runs of different lengths compare.
-    * solve times (median, p95, p99, max), ``failed_solves``, ``dropped_points`` (non-finite
-      scan points) and ``fault_steps`` (steps without a usable state or solve).
+    * solve times (median, p95, p99, max), ``failed_solves``, ``relaxed_solves`` (steps whose
+      QP had no solution and was solved relaxed, :mod:`~paper_repro.solvers.relaxed_qp`),
+      ``dropped_points`` (non-finite scan points) and ``fault_steps`` (steps without a usable
+      state or solve).
     * ``steps_outside_state_box``: steps whose state lies outside the box 𝒳 of
       ``config.nmpc`` (where :meth:`~paper_repro.problem.ocp.OCP.state_box` relaxes the bounds of
       the non-position entries); NaN for a vehicle with another state.
@@ -312,6 +314,7 @@ def _solver_columns(result) -> dict:
             "iterations_mean": float(np.mean(result.iterations)),
             "iterations_max": int(np.max(result.iterations)),
             "failed_solves": int(np.sum(~np.asarray(result.success, bool))),
+            "relaxed_solves": int(np.sum(np.asarray(result.status) == "relaxed")),
             "dropped_points": int(np.sum(result.dropped_points)),
             "fault_steps": int(np.isin(result.status, ("state_fault", "solve_error")).sum()),
             "steps_outside_state_box": outside}

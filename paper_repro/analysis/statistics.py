@@ -14,10 +14,13 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-EVENTS = ("completed", "collision", "stalled", "step_limit", "failed")
+EVENTS = ("completed", "collision", "stalled", "step_limit", "left_workspace", "fault",
+          "failed")
 """Per-run outcomes whose rates :func:`rates` reports: ``completed`` (finish line crossed or
 every target reached), ``collision`` (clearance < 0.35 m), ``stalled`` (deadlock),
-``step_limit`` (neither, in the time allowed), ``failed`` (the run raised)."""
+``step_limit`` (neither, in the time allowed), ``left_workspace`` (below the ground or
+through a wall), ``fault`` (persistent faults), ``failed`` (the run raised). Every run is
+in exactly one of them but ``collision``, which a run of any outcome can have."""
 
 PAIRED_COLUMNS = {
     "tv_u_rate_N_per_s": "total variation of u per second, N/s",
@@ -113,7 +116,7 @@ def by_setting(table: pd.DataFrame, settings=("metric", "eta", "sigma"),
     return pd.DataFrame(rows)
 
 
-def margins(table: pd.DataFrame, event: str = "collision", confidence: float = 0.95
+def margins(table: pd.DataFrame, event: str = "unsafe", confidence: float = 0.95
             ) -> pd.DataFrame:
     """The robustness margin of each effect swept over levels, per metric.
 
@@ -122,7 +125,9 @@ def margins(table: pd.DataFrame, event: str = "collision", confidence: float = 0
     count (not ``"none"`` or ``"combined"``). Per (effect, metric): the levels flown, the
     ``margin`` (the largest level below the first level with any ``event``; NaN when the
     first level already has one), ``first_failure`` (that level; NaN when none has one), and
-    the worst cell's rate with its Clopper–Pearson interval.
+    the worst cell's rate with its Clopper–Pearson interval. ``event`` is a column of the
+    table's events: ``"unsafe"`` (default) is a collision, a flight that left the workspace
+    (into the ground, say) or one ended by a fault.
     """
     t = _events(table)
     t = t[(t["remedy"] == "none") & ~t["effect"].isin(["none", "combined"])]
@@ -157,8 +162,10 @@ def _events(table: pd.DataFrame) -> pd.DataFrame:
     failed = t["status"] == "failed"
     for col in ("completed", "collision", "stalled"):
         t[col] = t[col].fillna(False).astype(bool) & ~failed if col in t else False
-    t["step_limit"] = (t["outcome"] == "step_limit") & ~failed if "outcome" in t else False
+    for outcome in ("step_limit", "left_workspace", "fault"):
+        t[outcome] = (t["outcome"] == outcome) & ~failed if "outcome" in t else False
     t["failed"] = failed
+    t["unsafe"] = t["collision"] | t["left_workspace"] | t["fault"]
     return t
 
 

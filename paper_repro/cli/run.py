@@ -123,6 +123,12 @@ def add_plant_arguments(parser) -> None:
     parser.add_argument("--compensate-latency", action="store_true", default=None,
                         help="the controller predicts the state over the estimate's latency "
                              "and the delay with its nominal model (a remedy)")
+    parser.add_argument("--hover-thrust", type=float, default=None, metavar="TAU",
+                        help="scale the thrusts by the thrust the vehicle is learnt to lack, "
+                             "with time constant TAU s (a remedy; e.g. 2)")
+    parser.add_argument("--motor-lag-compensation", type=float, default=None, metavar="S",
+                        help="send each thrust with the lead that inverts a rotor lag of this "
+                             "time constant, s (a remedy; e.g. the --motor-lag)")
 
 
 def add_cloud_arguments(parser) -> None:
@@ -207,7 +213,11 @@ def run_config(args) -> Config:
                    ("--estimation", "plant", "estimation", args.estimation),
                    ("--delay", "plant", "delay_steps", args.delay),
                    ("--compensate-latency", "plant", "compensate_latency",
-                    args.compensate_latency)) if value is not None]
+                    args.compensate_latency),
+                   ("--hover-thrust", "plant", "hover_thrust_time", args.hover_thrust),
+                   ("--motor-lag-compensation", "plant", "motor_lag_compensation",
+                    args.motor_lag_compensation))
+               if value is not None]
     return with_settings(cfg, options + list(args.settings))  # checked together: --set wins
 
 

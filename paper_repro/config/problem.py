@@ -279,6 +279,12 @@ class NMPCParams:
         """Step of the prediction model in s: ``prediction_ts``, or ``ts`` when it is None."""
         return self.ts if self.prediction_ts is None else float(self.prediction_ts)
 
+    def stage_time(self, j):
+        """τ_j = j·h, s: the time of stage j of the prediction after the scan, ``j`` an int or
+        an array of them. A region seen moving at v is predicted v·τ_j from where it was seen
+        (y_{N+1} = y_a is stage N + 1). Every solver and figure reads it from here."""
+        return j * self.prediction_step
+
     def relaxed_bounds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """λ(𝒳 × 𝒰) of the quadrotor's box (see :func:`relaxed_box`): x lower, x upper, u
         lower, u upper."""
@@ -333,29 +339,30 @@ class SolverParams:
         ``"riccati"`` (the active set without a budget, HPIPM as its fallback, whose 5-15 ms
         calls break T_s where the set changes by dozens of bounds at once: a chattering
         Euclidean passage, a region crossing the horizon) or ``"hpipm"`` (HPIPM for every QP).
-    cold_start : ``"rti"`` (default): the ``rti`` solver's first solve of a flight takes
-        ``sqp_iterations`` steps from rest, like every instant. ``"converged"``: it iterates
-        the damped SQP to convergence, so that the flight starts from a solution of (21), as
-        the reference does (:class:`~paper_repro.solvers.rti.RealTimeNMPC`).
+    cold_start : ``"converged"`` (default): the ``rti`` solver's first solve of a flight
+        iterates the damped SQP to convergence, so that the flight starts from a solution of
+        (21), as the reference does (:class:`~paper_repro.solvers.rti.RealTimeNMPC`).
+        ``"rti"``: it takes ``sqp_iterations`` steps from rest, like every instant; from the
+        hover guess one full step can settle on a worse local plan.
     shared_barrier : ``True``: the ``rti`` solver's compiled linearisation evaluates the
         barrier once for all stages, and each stage reads its value and gradient: about a
         third of the C to compile (15 s rather than 55 s at the default capacity), the same
-        QP to rounding (1e-24 relative), so the flights differ in their last bits.
-        ``False`` (default): the barrier is written out in each stage.
+        QP to rounding (1e-24 relative), and a call about a fifth cheaper. ``True`` is the
+        default. ``False``: the barrier is written out in each stage.
     relaxed_qp : ``True``: a QP of the ``rti`` solver that no QP method solves (an infeasible
         linearisation: a state that cannot be brought back inside 𝒳, a plan that cannot end
         at rest within the horizon) is solved with soft state bounds and terminal rows
-        (:mod:`~paper_repro.solvers.relaxed_qp`), and its step is taken. ``False``
-        (default): the solve fails and the closed loop applies the previous plan.
+        (:mod:`~paper_repro.solvers.relaxed_qp`), and its step is taken; the default.
+        ``False``: the solve fails and the closed loop applies the previous plan.
     """
 
     nlp_solver: str = "rti"
     sqp_iterations: int = 1
     line_search: bool = False
     qp_solver: str = "riccati-ipm"
-    cold_start: str = "rti"
-    relaxed_qp: bool = False
-    shared_barrier: bool = False
+    cold_start: str = "converged"
+    relaxed_qp: bool = True
+    shared_barrier: bool = True
 
     def __post_init__(self):
         require_choice("nlp_solver", self.nlp_solver, ("rti", "reference"))

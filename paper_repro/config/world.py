@@ -46,11 +46,11 @@ class SimulationParams:
         (shifted, as after a failed solve). After more than ``fault_steps`` faults in a row
         the run ends with the outcome ``"fault"``; the previous plan ends at rest at its
         artificial equilibrium, so holding it for a second is safe.
-    workspace_exit : m, or ``None`` (default: no such rule). The run ends with the outcome
+    workspace_exit : m, *chosen* 0, or ``None`` (no such rule). The run ends with the outcome
         ``"left_workspace"`` when the vehicle's position is farther than this outside the
-        workspace, the box of its position states (for the quadrotor the walls, the ground
-        and the ceiling). A vehicle below the ground has crashed; without the rule the
-        simulation flies on through it.
+        workspace (the quadrotor's 50 × 50 × 25 m box: its walls, the ground and the
+        ceiling). A vehicle below the ground has crashed; without the rule the simulation
+        flies on through it.
     """
 
     scenario: str = "paper"
@@ -63,7 +63,7 @@ class SimulationParams:
     stall_distance: float = 2.0
     fault_steps: int = 100
     approach_time: float = 150.0
-    workspace_exit: float | None = None
+    workspace_exit: float | None = 0.0
 
     def __post_init__(self):
         require_choice("kind", self.kind, ("mission", "passage"))
@@ -308,6 +308,15 @@ class PlantParams:
         forward with the nominal model through the inputs sent over the estimate's latency
         and the delay (:class:`~paper_repro.sim.imperfect.LatencyCompensation`). Needs a
         latency: an estimate other than ``"perfect"`` or ``delay_steps`` above 0.
+    hover_thrust_time : τ, s, or ``None`` (default). A number > 0: a remedy for a vehicle
+        heavier or weaker than the nominal one. The thrusts sent are divided by an estimate
+        of the thrust the vehicle makes over the nominal, learnt from its vertical
+        acceleration with time constant τ
+        (:class:`~paper_repro.sim.imperfect.HoverThrustEstimate`). *typical* 2.
+    motor_lag_compensation : τ̂, s, or ``None`` (default). A number > 0: a remedy for the
+        motor lag. Each thrust is sent with a lead, u + τ̂·u̇, the inverse of a first-order
+        lag of time constant τ̂ (:class:`~paper_repro.sim.imperfect.MotorLagCompensation`).
+        τ̂ is the rotors' time constant as identified; *typical* ``motor_lag``.
     seed : seed of the turbulence and of the estimate's noise, an integer >= 0.
     """
 
@@ -330,6 +339,8 @@ class PlantParams:
     estimation: str = "perfect"
     delay_steps: int = 0
     compensate_latency: bool = False
+    hover_thrust_time: float | None = None
+    motor_lag_compensation: float | None = None
     seed: int = 0
 
     def __post_init__(self):
@@ -364,6 +375,11 @@ class PlantParams:
         if self.compensate_latency and self.latency_steps() == 0:
             raise ValueError("compensate_latency needs a latency to compensate: an estimation "
                              "other than 'perfect' or delay_steps above 0")
+        for name in ("hover_thrust_time", "motor_lag_compensation"):
+            value = getattr(self, name)
+            if value is not None and not (is_number(value) and 0 < value < math.inf):
+                raise ValueError(f"{name} must be None or a finite number of seconds > 0, "
+                                 f"got {value!r}")
         extra = self.effects()
         if self.simulator == "ours" and extra:
             raise ValueError(f"{extra[0]} is an effect our plant (the NMPC's own model) does "

@@ -7,6 +7,7 @@ of the README and the book formatted from the committed tables.
 ``regenerate``     the stale sets made again, one job per core, the speed tables last
 ``readme``         the tables of the README and the book, from the committed ones
 ``beyond``         those of the studies beyond the paper (map, guide, moving regions, tuning)
+``hardware``       those of the flights against RotorPy (agreement, margins, cells)
 ``formatting``     how those tables write a rate, a share, a ratio, a time
 =================  ==================================================================
 """

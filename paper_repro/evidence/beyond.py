@@ -89,6 +89,9 @@ def moving_obstacles() -> str:
         ["barrier", "prediction", "metric", "event"])
     summary = pd.read_csv(folder / "moving_obstacles_summary.csv").set_index(
         ["barrier", "prediction", "metric"])
+    solves = pd.read_parquet(folder / "table.parquet", columns=[
+        "barrier", "prediction", "metric", "failed_solves", "relaxed_solves"]).groupby(
+        ["barrier", "prediction", "metric"]).sum()
     rows = []
     for barrier, prediction in dict.fromkeys((b, p) for b, p, _ in summary.index):
         row = [barrier, prediction]
@@ -97,18 +100,23 @@ def moving_obstacles() -> str:
             row.append(f"{int(c.k)}/{int(c.n)} [{100 * c.low:.0f}, {100 * c.high:.0f}] %")
         s = summary.loc[(barrier, prediction, "smooth")]
         e = summary.loc[(barrier, prediction, "euclidean")]
+        left = [rates.loc[(barrier, prediction, m, "left_workspace")]
+                for m in ("smooth", "euclidean")]
+        n = [solves.loc[(barrier, prediction, m)] for m in ("smooth", "euclidean")]
         row += [f"{s.min_clearance_median_m:.3f} / {e.min_clearance_median_m:.3f} m",
                 f"{s.min_clearance_min_m:.3f} / {e.min_clearance_min_m:.3f} m",
                 f"{s.tv_u_rate_median_N_per_s:.3g} / {e.tv_u_rate_median_N_per_s:.3g} N/s",
                 f"{fmt.share(s.completed)} / {fmt.share(e.completed)}",
-                f"{int(s.failed_solves):,} / {int(e.failed_solves):,}",
+                " / ".join(f"{int(r.k)}/{int(r.n)}" for r in left),
+                " / ".join(f"{int(g.failed_solves):,}, {int(g.relaxed_solves):,}" for g in n),
                 f"{fmt.share(s.cbf_condition_violated_share_median)} / "
                 f"{fmt.share(e.cbf_condition_violated_share_median)}"]
         rows.append(row)
     return fmt.markdown_table(["barrier", "prediction", "collisions, smoothed",
                            "collisions, Euclidean",
                            "min clearance, median (smoothed / Euclidean)", "closest approach",
-                           "TV of u, median", "completed", "failed solves",
+                           "TV of u, median", "completed", "left the workspace",
+                           "failed, relaxed solves",
                            "steps breaking (15) with a region in view, median"], rows)
 
 
@@ -167,6 +175,9 @@ def avoidability() -> str:
          "avoidable within the controller's time"], rows) + verdict
 
 
+_OUTCOME_WORDS = {"left_workspace": "left the workspace", "step_limit": "at the step limit"}
+
+
 def moving_heldout() -> str:
     """``figures/studies/moving_heldout/heldout.csv``: the design on crossings 50-99, seen while
     it was chosen, and on crossings no design was chosen on."""
@@ -175,50 +186,65 @@ def moving_heldout() -> str:
              fmt.rate_of(r.collisions / r.runs, r.collision_low, r.collision_high,
                          int(r.collisions), int(r.runs)),
              f"{r.min_clearance_m:.3f} m", f"{int(r.completed)}/{int(r.runs)}",
-             f"{int(r.failed_solves):,}", f"{int(r.encounters)}/{int(r.runs)}"]
+             f"{int(r.failed_solves):,}, {int(r.relaxed_solves):,}",
+             f"{int(r.encounters)}/{int(r.runs)}"]
             for r in table.itertuples()]
     runs = pd.read_csv(paths.figures_dir() / "studies" / "moving_heldout" / "table.csv",
-                       usecols=["scene_seed", "set", "prediction", "metric", "collision"])
-    hits = runs[runs["collision"].astype(bool)]
-    where = "; ".join(
-        f"crossing {seed} ({g['set'].iloc[0]}: "
-        + ", ".join(f"{p} {m}" for p, m in zip(g["prediction"], g["metric"])) + ")"
-        for seed, g in hits.groupby("scene_seed"))
+                       usecols=["scene_seed", "set", "prediction", "metric", "collision",
+                                "outcome"])
+
+    def crossings(which, outcome=False):
+        by = ["scene_seed", "outcome"] if outcome else ["scene_seed"]
+        return "; ".join(
+            f"crossing {g['scene_seed'].iloc[0]} ({g['set'].iloc[0]}: "
+            + ", ".join(f"{p} {m}" for p, m in zip(g["prediction"], g["metric"]))
+            + (f"; {_OUTCOME_WORDS.get(g['outcome'].iloc[0], g['outcome'].iloc[0])}"
+               if outcome else "") + ")"
+            for _, g in runs[which].groupby(by))
+
+    hits = crossings(runs["collision"].astype(bool))
+    ended = crossings(runs["outcome"] != "completed", outcome=True)
     return fmt.markdown_table(["crossings", "prediction", "metric", "collisions",
-                               "closest approach", "completed", "failed solves",
+                               "closest approach", "completed", "failed, relaxed solves",
                                "a region within 3 m"], rows) + (
-        f"\n\nThe runs that collide: {where}." if where else "\n\nNo run collides.")
+        f"\n\nThe runs that collide: {hits}." if hits else "\n\nNo run collides.") + (
+        f" The runs that did not complete: {ended}." if ended else " Every run completes.")
 
 
 def qp_failures() -> str:
-    """``figures/studies/qp_failures/``: the moving studies' runs with the most failed solves,
-    flown again with each failed QP's cause recorded (``runs.csv``, ``causes.csv``)."""
+    """``figures/studies/qp_failures/``: the moving studies' runs whose hard QP fails most,
+    each flown as designed and with the hard QP on the paper's 𝒳, with the cause of every
+    hard QP that failed (``runs.csv``, ``causes.csv``)."""
     folder = paths.figures_dir() / "studies" / "qp_failures"
     runs = pd.read_csv(folder / "runs.csv")
     causes = pd.read_csv(folder / "causes.csv")
     rows = [[r.study, r.name.replace("passage-", "").replace("-eta0.3-sigma0.8", ""),
-             f"{r.steps:,}", f"{r.committed_failed_solves:,}", f"{r.failed_solves:,}",
-             f"{r.longest_streak:,}", f"{r.failed_in_view:,}", r.outcome,
+             r.variant, f"{r.steps:,}", f"{r.failed_solves:,}", f"{r.relaxed_solves:,}",
+             f"{r.longest_streak:,}", f"{r.hard_qp_failed_in_view:,}", r.outcome,
              "no" if r.left_workspace_step < 0 else f"step {r.left_workspace_step:,}",
-             f"{r.min_altitude_m:,.3f}"] for r in runs.itertuples()]
-    out = fmt.markdown_table(["study", "run", "steps", "failed (study)", "failed (again)",
-                              "longest streak", "failed, points in view", "outcome",
-                              "left the workspace", "lowest altitude, m"], rows)
-    by = ["active_set", "interior_point", "hpipm", "outside_state_box"]
+             f"{r.min_altitude_m:,.4f}"] for r in runs.itertuples()]
+    out = fmt.markdown_table(["study", "run", "controller", "steps", "failed solves",
+                              "relaxed solves", "longest streak", "hard QP failed, points in view",
+                              "outcome", "left the workspace", "lowest altitude, m"], rows)
+    by = ["variant", "path", "active_set", "interior_point", "hpipm", "outside_state_box"]
     total = causes.groupby(by, dropna=False)["count"].sum().sort_values(ascending=False)
     out += "\n\n" + fmt.markdown_table(
-        ["active set", "interior point", "HPIPM", "state outside 𝒳", "failed QPs"],
+        ["controller", "then", "active set", "interior point", "HPIPM", "state outside 𝒳",
+         "solves"],
         [[*("skipped" if pd.isna(v) else str(v) for v in key), f"{n:,}"]
-         for key, n in total.items()])
-    finite = bool(causes["finite_data"].all())
-    out += (f"\n\nOf {int(causes['count'].sum()):,} failed QPs, "
-            f"{'every one' if finite else 'not every one'} had finite data.")
-    moved = runs[runs.failed_solves != runs.committed_failed_solves]
-    if len(moved):
-        out += (f" {len(moved)} of {len(runs)} runs failed a different number of times when "
-                "flown again: a moving crossing can take another path from a last-bit "
-                "difference of the arithmetic, which the golden flights' tolerance allows.")
-    return out
+         for key, n in total.sort_index(level=0, sort_remaining=False).items()])
+    sentences = []
+    for variant, g in runs.groupby("variant", sort=False):
+        done = int((g["outcome"] == "completed").sum())
+        left = int((g["left_workspace_step"] >= 0).sum())
+        sentences.append(
+            f"{variant[0].upper() + variant[1:]}: {int(g['failed_solves'].sum()):,} failed and "
+            f"{int(g['relaxed_solves'].sum()):,} relaxed solves over {len(g)} runs; "
+            f"{done} completed, {left} left the workspace.")
+    finite = bool(causes["finite_data"].all()) if len(causes) else True
+    sentences.append(f"Of {int(causes['count'].sum()):,} hard QPs that failed, "
+                     f"{'every one' if finite else 'not every one'} had finite data.")
+    return out + "\n\n" + " ".join(sentences)
 
 
 def moving_speeds() -> str:
@@ -268,16 +294,17 @@ def moving_levers() -> str:
     for (scenes, lever), g in table.groupby(["scenes", "lever"], sort=False):
         rows.append([scenes, f"`{lever}`", f"{g['encounters'].sum()}/{g['runs'].sum()}",
                      collisions(g, "smooth"), collisions(g, "euclidean"),
-                     f"{g['min_clearance_m'].min():.2f} m", f"{g['stalled'].sum()}",
+                     f"{g['min_clearance_m'].min():.2f} m",
+                     f"{g['completed'].sum()}/{g['runs'].sum()}", f"{g['stalled'].sum()}",
                      " / ".join(spread(g.loc[g["metric"] == m, "tv_u_rate_median_N_per_s"],
                                        "{:.3g}", "") for m in ("smooth", "euclidean")) + " N/s",
-                     f"{g['failed_solves'].sum():,}",
+                     f"{g['failed_solves'].sum():,}, {g['relaxed_solves'].sum():,}",
                      spread(100 * g["cbf_condition_violated_share_median"], "{:.0f}", " %")])
     return fmt.markdown_table(["crossings", "lever", "runs with a region in range",
                                "collisions, smoothed (oracle / Kalman)",
                                "collisions, Euclidean (oracle / Kalman)", "closest approach",
-                               "stalled", "TV of u, median (smoothed / Euclidean)",
-                               "failed solves", "steps breaking (15), median"],
+                               "completed", "stalled", "TV of u, median (smoothed / Euclidean)",
+                               "failed, relaxed solves", "steps breaking (15), median"],
                               rows)
 
 
@@ -478,9 +505,12 @@ def overview() -> str:
 
     n = int(moving.loc[("paper", "oracle", "smooth", "collision")].n)
     span = _design_span(figs / "studies" / "moving_obstacles" / "study.json")
+    grounded = moving.xs("left_workspace", level="event").loc["paper"]
     rows = [["moving regions, the paper's barrier",
              f"collisions over {n} crossings: static prediction {collided('paper', 'static')}; "
-             f"oracle {collided('paper', 'oracle')}; Kalman {collided('paper', 'kalman')}",
+             f"oracle {collided('paper', 'oracle')}; Kalman {collided('paper', 'kalman')}. "
+             f"Runs that left the workspace: {int(grounded['k'].min())} "
+             f"to {int(grounded['k'].max())} of {n} per prediction and metric",
              "`moving_obstacles_rates.csv`"],
             ["... could a vehicle as agile have passed?",
              f"a clear passage exists for {int(avoid['avoidable'].sum())} of {len(avoid)} "

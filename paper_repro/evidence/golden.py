@@ -35,18 +35,16 @@ A pure refactor leaves every golden flight within tolerance: the committed files
 the stamps and the cache keys stay as they are, and nothing needs re-flying.
 
 **Machine copies.** Besides the code, two things set a flight's last bits: the instruction set
-the C is built for, and whether NumPy takes its AVX-512 paths (its float64 ``exp`` and
-``log`` are NumPy's own code there and the C library's elsewhere, and they differ in the last
-bit for some arguments). :func:`machine_signature` names both; ``golden.json`` records the
-signature of the machine that wrote the flights. Most flights absorb such a bit within
-tolerance; a flight whose solver makes a discrete choice on it (an active set, an interior
-point's iteration count) does not. On a machine of another signature, a flight flown with the
-same code is kept as a *machine copy* (``golden --machine-copy``), in
-``figures/golden/machines/<signature>/``, tied to the SHA-256 of the committed file it stands
-for. :func:`check_golden` compares with the copy there, and with the committed file wherever
-the copy is missing or stands for another file: a code change still moves the flight against
-its reference. The copies enter no hash: the evidence was made on the machine that wrote the
-golden flights.
+the C is built for, and the OpenBLAS kernel NumPy and IPOPT run (:mod:`paper_repro._blas`).
+:func:`machine_signature` names both; ``golden.json`` records the signature of the machine
+that wrote the flights. Most flights absorb a last bit within tolerance; a flight whose solver
+makes a discrete choice on it (an active set, an interior point's iteration count) does not.
+On a machine of another signature, a flight flown with the same code is kept as a *machine
+copy* (``golden --machine-copy``), in ``figures/golden/machines/<signature>/``, tied to the
+SHA-256 of the committed file it stands for. :func:`check_golden` compares with the copy
+there, and with the committed file wherever the copy is missing or stands for another file:
+a code change still moves the flight against its reference. The copies enter no hash: the
+evidence was made on the machine that wrote the golden flights.
 """
 
 from __future__ import annotations
@@ -94,6 +92,8 @@ class GoldenFlight:
     barrier : ``(field, value)`` pairs of :class:`~paper_repro.config.BarrierParams` that
         differ from the paper's (the moving design's swept path and margin).
     prediction_ts : the prediction step (``NMPCParams.prediction_ts``; ``None``: T_s).
+    floor : m, the lowest altitude of 𝒳 (``NMPCParams.state_lower[2]``; ``None``: the
+        paper's ground, 0), as the moving study's design keeps it.
     approach_time : the pace of a ``random-crossing`` (``SimulationParams.approach_time``;
         ``None``: the printed set-up's).
     layer : ``""`` (the core), ``"map"`` (the noisy LiDAR read through the local map),
@@ -119,6 +119,7 @@ class GoldenFlight:
     barrier: tuple = ()
     prediction_ts: float | None = None
     approach_time: float | None = None
+    floor: float | None = None
     layer: str = ""
 
     def config(self):
@@ -138,7 +139,8 @@ class GoldenFlight:
                     max_steps=self.steps, **({} if self.approach_time is None
                                              else {"approach_time": self.approach_time})),
                 nmpc=dataclasses.replace(cfg.nmpc, prediction=self.prediction,
-                                         prediction_ts=self.prediction_ts),
+                                         prediction_ts=self.prediction_ts,
+                                         state_lower=self._state_lower(cfg.nmpc)),
                 barrier=dataclasses.replace(cfg.barrier, **dict(self.barrier)))
         if self.layer in ("map", "guide"):
             from paper_repro.config import GuideParams
@@ -152,6 +154,14 @@ class GoldenFlight:
         return dataclasses.replace(cfg, solver=dataclasses.replace(
             cfg.solver, nlp_solver=self.solver, line_search=self.line_search,
             qp_solver=self.qp_solver))
+
+
+    def _state_lower(self, nmpc) -> tuple:
+        """𝒳's lower bounds, with the altitude's at ``floor`` when one is given."""
+        lower = list(nmpc.state_lower)
+        if self.floor is not None:
+            lower[2] = self.floor
+        return tuple(lower)
 
 
 GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
@@ -202,7 +212,7 @@ GOLDEN_FLIGHTS: tuple[GoldenFlight, ...] = (
                  "margin in view for most of its 15 s, the 0.525 s prediction, the damped RTI "
                  "(the interior point for a third of its QPs)", scenario="random-crossing",
                  kind="passage", seed=1, approach_time=27.0, steps=1500, prediction="oracle",
-                 line_search=True, prediction_ts=0.015,
+                 line_search=True, prediction_ts=0.015, floor=0.5,
                  barrier=(("moving_d_min", 3.0), ("sweep_time", 1.0)), layer="sweep"),
 )
 
@@ -308,15 +318,13 @@ def check_golden(names=None) -> list[dict]:
 
 def machine_signature() -> str:
     """This machine's signature (module docstring, "Machine copies"): the ``-march`` the C is
-    built for (:func:`paper_repro._native.arch_flags`) and the highest x86-64 level NumPy
-    dispatches to, e.g. ``c-x86-64-v3_numpy-x86-64-v4``."""
+    built for (:func:`paper_repro._native.arch_flags`) and the kernel of NumPy's OpenBLAS
+    (:func:`paper_repro._blas.numpy_kernel`), e.g. ``c-x86-64-v3_blas-Haswell``."""
+    from paper_repro import _blas
     from paper_repro._native import arch_flags
 
     arch = arch_flags()[0].removeprefix("-march=")
-    found = set(np.show_config(mode="dicts").get("SIMD Extensions", {}).get("found") or ())
-    level = ("x86-64-v4" if "X86_V4" in found or any(f.startswith("AVX512") for f in found)
-             else "x86-64-v3" if "X86_V3" in found else "baseline")
-    return f"c-{arch}_numpy-{level}"
+    return f"c-{arch}_blas-{_blas.numpy_kernel() or 'other'}"
 
 
 def golden_signature() -> str:
@@ -434,6 +442,9 @@ def stamp(folder, made_by: str, layer: str = "") -> Path:
     last, after every file of the set is written. A set whose command records no wall time
     gets the time this process has run (:func:`~paper_repro.evidence.sets.record_wall_time`),
     so the contributor page shows the last run, by hand or by ``regenerate``."""
+    from paper_repro import _blas
+
+    _blas.check_kernel()
     out = Path(folder) / "evidence.json"
     record = {"golden": golden_hash(layer), "made_by": made_by}
     if layer:

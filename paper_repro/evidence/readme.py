@@ -149,16 +149,18 @@ def solver_speed(scenario: str) -> str:
              "rti-damped-riccati": "rti-damped-riccati (damped, riccati)",
              "sqp-converged": "sqp-converged"}
     ipm = "ipm_qps" in table and bool(table["ipm_qps"].any())
-    rows = [[names.get(r.solver, r.solver), fmt.ms(r.median_ms), fmt.ms(r.p95_ms), fmt.ms(r.p99_ms),
+    rows = [[names.get(r.solver, r.solver), f"{r.steps:,}", r.outcome.replace("_", " "),
+             fmt.ms(r.median_ms), fmt.ms(r.p95_ms), fmt.ms(r.p99_ms),
              fmt.ms(r.max_ms), f"{r.iterations_median:.0f}", f"{r.failures:,}",
              *([f"{r.ipm_qps:,}"] if ipm else []),
-             "–" if r.solver == "reference" else f"{r.hpipm_qps:,} of {r.steps:,}",
+             "–" if r.solver == "reference" else f"{r.hpipm_qps:,}",
              f"{r.shortened:,}", fmt.metres(r.max_dev_m) if r.solver != "reference" else "0",
              f"{r.min_clearance_m:.3f} m"] for r in table.itertuples()]
-    return fmt.markdown_table(["solver", "median ms", "p95 ms", "p99 ms", "max ms", "iterations",
-                           "failures", *(["QPs to the interior point"] if ipm else []),
-                           "QPs sent to HPIPM", "shortened steps",
-                           "max deviation from IPOPT", "min clearance"], rows)
+    return fmt.markdown_table(["solver", "calls", "outcome", "median ms", "p95 ms", "p99 ms",
+                               "max ms", "iterations", "failures",
+                               *(["QPs to the interior point"] if ipm else []),
+                               "QPs sent to HPIPM", "shortened steps",
+                               "max deviation from IPOPT", "min clearance"], rows)
 
 
 def swept_pillar() -> str:
@@ -177,12 +179,13 @@ def swept_pillar() -> str:
     rows = [[r.variant, fmt.ms(r.median_ms), tail(r.p99_ms), tail(r.max_ms),
              f"{r.over_ts:,} of {r.steps:,}", tail(r.least_p99_ms), tail(r.least_max_ms),
              f"{r.least_over_ts:,}", f"{r.ipm_qps:,}", iterations(r), f"{r.hpipm_qps:,}",
-             f"{r.min_clearance_m:.3f} m"] for r in table.itertuples()]
+             f"{r.min_clearance_m:.3f} m", r.outcome.replace("_", " ")]
+            for r in table.itertuples()]
     return fmt.markdown_table(["variant", "median ms", "p99 ms", "max ms", "calls over T_s",
                                f"least of {passes}: p99 ms", "max ms", "over T_s",
                                "QPs to the interior point",
                                "its iterations: median / p99 / max", "QPs sent to HPIPM",
-                               "min clearance"], rows)
+                               "min clearance", "outcome"], rows)
 
 
 def monte_carlo() -> str:

@@ -136,11 +136,10 @@ def _draw_crossing(ax, result, k: int, plane: str, velocities=None, stages=(),
         artists.append(ax.scatter(pts[:, i0], pts[:, i1], s=12, color="orange",
                                   edgecolor="darkred", lw=0.4, zorder=3))
     if velocities is not None and stages:
-        h = cfg.nmpc.prediction_step
         stages = sorted(stages)
         alphas = np.linspace(0.8, 0.3, len(stages))
         for j, alpha in zip(stages, alphas, strict=True):
-            moved = [v + np.asarray(velocities[i], float) * j * h
+            moved = [v + np.asarray(velocities[i], float) * cfg.nmpc.stage_time(j)
                      for i, v in enumerate(seen) if len(v)]
             if moved:
                 pts = np.concatenate(moved)
@@ -169,8 +168,8 @@ def _crossing_limits(result, steps, plane: str, pad: float):
     return lo, hi
 
 
-def _crossing_handles(stages, h: float) -> list:
-    """Legend entries of :func:`_draw_crossing`."""
+def _crossing_handles(stages, nmpc) -> list:
+    """Legend entries of :func:`_draw_crossing`; ``nmpc`` (``NMPCParams``) gives τ_j."""
     from matplotlib.lines import Line2D
 
     handles = [Line2D([], [], color="black", lw=1.0, marker="o", ms=4, label="UAV path"),
@@ -180,7 +179,7 @@ def _crossing_handles(stages, h: float) -> list:
                       label="in view"),
                Line2D([], [], color=SPHERE_COLOR, lw=0.8, label="LiDAR range")]
     if stages:
-        taus = ", ".join(f"{j * h:g}" for j in sorted(stages))
+        taus = ", ".join(f"{nmpc.stage_time(j):g}" for j in sorted(stages))
         handles.append(Line2D([], [], ls="", marker="o", ms=5, mfc="none", mec=GHOST_COLOR,
                               label=f"predicted at τ = {taus} s"))
     return handles
@@ -256,8 +255,8 @@ def plot_crossing_closest(results, labels, velocities=None, planes=("xy", "yz"),
             ax.set_xlim(lo[0], hi[0])
             ax.set_ylim(lo[1], hi[1])
             ax.set_aspect("equal")
-    h = results[0].config.nmpc.prediction_step
-    handles = _crossing_handles(stages if any(v is not None for v in velocities) else (), h)
+    handles = _crossing_handles(stages if any(v is not None for v in velocities) else (),
+                                results[0].config.nmpc)
     fig.legend(handles=handles, loc="outside lower center", ncols=len(handles),
                fontsize="small", frameon=False)
     return fig
@@ -319,7 +318,7 @@ def animate_crossing(result, path, velocities=None, planes=("xy", "yz"), stages=
         ax.set_xlabel(AXIS_LABELS[i0])
         ax.set_ylabel(AXIS_LABELS[i1])
         ax.grid(alpha=0.3)
-    handles = _crossing_handles(stages, result.config.nmpc.prediction_step)
+    handles = _crossing_handles(stages, result.config.nmpc)
     fig.legend(handles=handles, loc="lower center", ncols=3, fontsize="small", frameon=False)
     title = fig.suptitle("", fontsize="medium")
     prediction = result.config.nmpc.prediction

@@ -177,7 +177,7 @@ def clearance(y, cloud) -> float | np.ndarray:
     return np.sqrt(2.0 * euclidean_distance(y, cloud))
 
 
-def smooth_distance_symbolic(y, points, log_weights, log_volume, eta: float):
+def smooth_distance_symbolic(y, points, log_weights, log_volume, eta, eta_squared=None):
     """CasADi expression of D_{η,σ}(y) for the NLP.
 
     Parameters
@@ -187,11 +187,15 @@ def smooth_distance_symbolic(y, points, log_weights, log_volume, eta: float):
     log_weights : (m, 1) ln W_j. A slot whose ln W is ≤ −1e30 is padding: its term is
         exp(−1e30 − s) = 0 exactly, so it contributes nothing to D or to any derivative.
     log_volume : scalar ln V of the (visible) cloud.
-    eta : η > 0, m (a number, fixed when the NLP is built).
+    eta : η > 0, m: a number fixed when the NLP is built, or a symbol read at run time.
+    eta_squared : η² as the symbol that stands for it (then ``eta`` is not read), so that
+        its value is η**2 as Python computes it for a number.
     """
-    _check_scale("eta", eta)
+    if eta_squared is None:
+        _check_scale("eta", eta)
     sq = _sq_dist_casadi(y, points)
-    return _distance_expression(sq, log_weights, log_volume, eta, _logsumexp_casadi)
+    return _distance_expression(sq, log_weights, log_volume, eta, _logsumexp_casadi,
+                                eta_squared)
 
 
 def euclidean_distance_symbolic(y, points, mask):
@@ -250,9 +254,11 @@ def _check_scale(name: str, value) -> None:
         raise ValueError(f"{name} must be a finite number > 0 (m), got {value!r}")
 
 
-def _distance_expression(sq, log_weights, log_volume, eta, logsumexp):
-    """Eq. (8) from squared distances: the single definition behind both backends."""
-    return -eta**2 * (logsumexp(log_weights - sq / (2.0 * eta**2)) - log_volume)
+def _distance_expression(sq, log_weights, log_volume, eta, logsumexp, eta_squared=None):
+    """Eq. (8) from squared distances: the single definition behind both backends
+    (``eta_squared``: η², when given apart)."""
+    eta_sq = eta**2 if eta_squared is None else eta_squared
+    return -eta_sq * (logsumexp(log_weights - sq / (2.0 * eta_sq)) - log_volume)
 
 
 def _chunks(ys: np.ndarray, points: np.ndarray):

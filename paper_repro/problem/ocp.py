@@ -27,6 +27,7 @@ Import graph: ``config → vehicle → model → ocp → {nmpc, rti} → control
 
 from __future__ import annotations
 
+import copy
 import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -100,6 +101,29 @@ class OCP:
                                b.reaction_time, b.sweep_time, b.moving_d_min,
                                b.equilibrium_lookahead)
         self.step = p.prediction_step
+        self.stage_time = p.stage_time  # τ_j = j·h
+
+    # The numbers the compiled linearisation reads at run time, not at build time.
+
+    @property
+    def runtime_values(self) -> np.ndarray:
+        """θ, the numbers the compiled linearisation reads at run time: √q (n_x), √r (n_u),
+        √t (p), μ, κ, the decay c, η, η² and d_min, each as the problem computes it. Another
+        weight, μ, κ, δ, η or d_min reuses the same compiled code."""
+        s = self.scan
+        return np.concatenate([*self._sqrt_weights,
+                               [self.mu, self.kappa, self.decay, s.eta, s.eta**2, s.d_min]])
+
+    def with_symbols(self, theta) -> OCP:
+        """A copy of this problem whose weights, μ, κ, c, η and d_min are the entries of the
+        symbol θ (CasADi SX, laid out as :attr:`runtime_values`): for building expressions."""
+        nx, nu, ny = self.nx, self.nu, self.ny
+        twin = copy.copy(self)
+        twin._sqrt_weights = (theta[:nx], theta[nx:nx + nu], theta[nx + nu:nx + nu + ny])
+        twin.mu, twin.kappa, twin.decay, eta, eta_sq, d_min = (
+            theta[nx + nu + ny + i] for i in range(6))
+        twin.scan = self.scan.with_symbols(eta, eta_sq, d_min)
+        return twin
 
     # Cost terms, as residuals r whose squared norm is the term: the Gauss-Newton solver needs
     # the residual, the IPOPT transcription its square.

@@ -64,6 +64,8 @@ class ScanLayout:
         equilibrium y_a (``beta(y, tau, at_equilibrium=True)``) is that of the region's path
         over the t_a seconds after the horizon (:data:`SWEEP_SAMPLES` copies), so the point
         the prediction rests at must stay clear of where the region is going.
+    eta_squared : ``None``, or the symbol of η² when η and d_min are symbols read at run time
+        (:meth:`with_symbols`).
     """
 
     metric: str
@@ -80,6 +82,7 @@ class ScanLayout:
     sweep_time: float = 0.0
     moving_d_min: float = 0.0
     equilibrium_lookahead: float = 0.0
+    eta_squared: object = None
 
     @property
     def size(self) -> int:
@@ -90,6 +93,12 @@ class ScanLayout:
 
     def with_capacity(self, capacity: int) -> ScanLayout:
         return dataclasses.replace(self, capacity=capacity)
+
+    def with_symbols(self, eta, eta_squared, d_min) -> ScanLayout:
+        """This layout with η, η² and d_min as symbols (CasADi SX): values read at run time,
+        so that another η or d_min does not build the code again. Only for building
+        expressions: :meth:`pack` needs the numbers."""
+        return dataclasses.replace(self, eta=eta, eta_squared=eta_squared, d_min=d_min)
 
     @functools.cached_property
     def _unused_scan(self) -> np.ndarray:
@@ -216,22 +225,25 @@ class ScanLayout:
         if self.metric == "smooth":
             log_w = ca.SX.sym("log_w", cap)
             log_v = ca.SX.sym("log_v")
-            d = dist.smooth_distance_symbolic(y, pts, log_w, log_v, self.eta)
+            d = dist.smooth_distance_symbolic(y, pts, log_w, log_v, self.eta, self.eta_squared)
             extra = [log_w, log_v]
         else:
             mask = ca.SX.sym("mask", cap)
             d = dist.euclidean_distance_symbolic(y, pts, mask)
             extra = [mask]
-        beta_fn = ca.Function("beta", [y, pts, *extra], [d - self.d_min])
+        # η, η² and d_min when they are symbols read at run time (:meth:`with_symbols`)
+        shared = [v for v in (self.eta, self.eta_squared, self.d_min) if isinstance(v, ca.SX)]
+        beta_fn = ca.Function("beta", [y, pts, *extra, *shared], [d - self.d_min])
+        given = [*extra, *shared]
         if not self.moving:
             params = ca.vertcat(ca.vec(pts), *extra, active)
-            return params, lambda yy, tau=0.0: beta_fn(yy, pts, *extra), active
+            return params, lambda yy, tau=0.0: beta_fn(yy, pts, *given), active
         velocity = ca.SX.sym("velocity", dim)
         params = ca.vertcat(ca.vec(pts), *extra, active, velocity)
         if (self.sweep_time == 0 and self.moving_d_min == 0 and self.reaction_time == 0
                 and self.equilibrium_lookahead == 0):
             return (params, lambda yy, tau=0.0, at_equilibrium=False:
-                    beta_fn(yy - velocity * tau, pts, *extra), active)
+                    beta_fn(yy - velocity * tau, pts, *given), active)
         # ‖v‖ of a parameter: never differentiated, so its kink at v = 0 does not matter.
         speed = ca.norm_2(velocity)
         lo, hi = MOVING_SPEEDS
@@ -247,8 +259,8 @@ class ScanLayout:
         def swept(yy, tau, span):
             """β of the region's path from τ to τ + span (the region itself when span = 0)."""
             if span == 0:
-                return beta_fn(yy - velocity * tau, pts, *extra)
-            copies = [beta_fn(yy - velocity * (tau + s), pts, *extra)
+                return beta_fn(yy - velocity * tau, pts, *given)
+            copies = [beta_fn(yy - velocity * (tau + s), pts, *given)
                       for s in np.linspace(0.0, span, SWEEP_SAMPLES)]
             if self.metric == "euclidean":
                 # the exact distance to the union of the copies (they coincide at rest)

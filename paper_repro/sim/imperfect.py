@@ -9,13 +9,19 @@ loop does not change:
   (the time a solve and its transport take); the rest input before that. The result logs
   the input the controller computed, not the one applied.
 
-One remedy is a plant wrapper too:
+Three remedies are plant wrappers too:
 
 * :class:`LatencyCompensation`: the controller is given the state its next input will meet,
   predicted with the nominal model over the known latency through the inputs already sent.
+* :class:`HoverThrustEstimate`: the thrusts sent are scaled by an estimate of how much
+  thrust the vehicle lacks, learnt from its vertical acceleration (as PX4's hover-thrust
+  estimator does); a heavier vehicle or weaker rotors no longer sag below the plan.
+* :class:`MotorLagCompensation`: each thrust is sent with a lead, u + τ̂·u̇, so that rotors
+  with a first-order lag of time constant τ̂ make the thrust the plan asked for.
 
 :func:`~paper_repro.sim.plant.plant_for` builds them from ``config.plant``
-(``estimation``, ``delay_steps``, ``compensate_latency``).
+(``estimation``, ``delay_steps``, ``compensate_latency``, ``hover_thrust_time``,
+``motor_lag_compensation``).
 """
 
 from __future__ import annotations
@@ -157,3 +163,132 @@ class LatencyCompensation:
         for u in self._sent:
             m = np.asarray(self.nominal.step(m, u), float)
         return m
+
+
+class HoverThrustEstimate:
+    """``plant``, whose thrusts are scaled by a learnt correction: a remedy.
+
+    The NMPC plans with the nominal mass and thrust coefficient. If the vehicle makes k times
+    the thrust the nominal model predicts for its weight (k = thrust_scale / mass_scale, say),
+    it sags or climbs off the plan, and the NMPC, which has no integral action, settles off
+    its target. This wrapper estimates k from the measured vertical acceleration and sends
+    the thrusts divided by the estimate k̂, so the vehicle makes the thrust the plan asked for.
+
+    Each step, from two successive measurements m₀ (k − 1) and m₁ (k), and the thrusts f
+    applied in between (sent ``latency`` steps before, the estimate's and the input's delay):
+
+    * measured: a = (v_z(m₁) − v_z(m₀))/T_s + g;
+    * nominal: a₀ = R₃₃(m₀)·Σf / m, with R₃₃ = cos φ cos θ the body z-axis' vertical part;
+    * k̂ ← k̂ + (T_s/τ)·(a/a₀ − k̂), a first-order filter of time constant τ, read only while
+      a₀ > g/2 (the thrust carries most of the weight, so the ratio is well posed).
+
+    Anything else that pushes the vehicle vertically (drag of a climb, a vertical gust) moves
+    k̂ too, as on PX4; τ sets how fast it follows. The scaled thrusts are clipped to the
+    rotors' bounds.
+
+    Parameters
+    ----------
+    plant : the plant flown (with its estimate and its delay).
+    ts : T_s, s.  mass : the nominal mass, kg.  gravity : g, m/s².
+    time_constant : τ, s, > 0.
+    input_bounds : ((n_u,), (n_u,)) the thrusts' bounds, N.
+    latency : L + d, steps of T_s between an input sent and the measurement that shows it,
+        an integer >= 0.
+    rest_input : (n_u,) the thrusts sent before the flight (hover).
+    """
+
+    def __init__(self, plant, ts: float, mass: float, gravity: float, time_constant: float,
+                 input_bounds, latency: int, rest_input):
+        if not (time_constant > 0 and np.isfinite(time_constant)):
+            raise ValueError(f"time_constant must be a finite number of seconds > 0, "
+                             f"got {time_constant!r}")
+        if not (isinstance(latency, int) and not isinstance(latency, bool) and latency >= 0):
+            raise ValueError(f"latency must be an integer >= 0 (steps), got {latency!r}")
+        self.plant, self.ts, self.mass, self.gravity = plant, ts, mass, gravity
+        self.gain = min(1.0, ts / time_constant)
+        self.lower, self.upper = (np.asarray(b, float) for b in input_bounds)
+        self.latency = latency
+        self.rest_input = np.asarray(rest_input, float)
+        self.estimate = 1.0  # k̂
+        self._applied: deque = deque(maxlen=latency + 1)
+        self._last: np.ndarray | None = None
+
+    def reset(self, x0) -> None:
+        self.estimate, self._last = 1.0, None
+        self._applied.clear()
+        self._applied.extend([self.rest_input.copy()] * (self.latency + 1))
+        if callable(getattr(self.plant, "reset", None)):
+            self.plant.reset(x0)
+
+    def step(self, x, u) -> np.ndarray:
+        """Send ``u`` / k̂, clipped to the bounds, and step the plant."""
+        if not self._applied:
+            self.reset(x)
+        f = np.clip(np.asarray(u, float) / self.estimate, self.lower, self.upper)
+        self._applied.append(f)
+        return self.plant.step(x, f)
+
+    def measure(self, x) -> np.ndarray:
+        """The plant's measurement, handed on unchanged; k̂ learns from it."""
+        measure = getattr(self.plant, "measure", None)
+        m = np.asarray(measure(x) if callable(measure) else x, float)
+        if not self._applied:
+            self.reset(x)
+        if self._last is not None and np.isfinite(m).all():
+            self._learn(self._last, m, self._applied[0])
+        self._last = m.copy() if np.isfinite(m).all() else None
+        return m
+
+    def _learn(self, m0, m1, f) -> None:
+        """One update of k̂ from the measurements m0 → m1 under the thrusts f."""
+        phi, theta = m0[3], m0[4]
+        nominal = np.cos(phi) * np.cos(theta) * float(np.sum(f)) / self.mass
+        if nominal <= self.gravity / 2:
+            return
+        measured = (m1[8] - m0[8]) / self.ts + self.gravity
+        self.estimate += self.gain * (measured / nominal - self.estimate)
+        self.estimate = float(np.clip(self.estimate, 0.5, 2.0))
+
+
+class MotorLagCompensation:
+    """``plant``, whose rotors lag, driven through the inverse of the lag: a remedy.
+
+    A rotor with a first-order lag of time constant τ turns a command c into a thrust f with
+    τ·ḟ + f = c. Sending c = u + τ̂·u̇ for the planned thrust u makes f = u when τ̂ = τ (exactly
+    for a ramp, after the transient). Each step sends
+
+        c_k = u_k + (τ̂ / T_s)·(u_k − u_{k−1}),
+
+    clipped to the rotors' bounds (the first step sends u_0). A constant thrust is sent as it
+    is. τ̂ is the rotors' time constant as identified (a bench test of a motor's step).
+
+    Parameters
+    ----------
+    plant : the plant flown.
+    ts : T_s, s.  time_constant : τ̂, s, > 0.
+    input_bounds : ((n_u,), (n_u,)) the thrusts' bounds, N.
+    """
+
+    def __init__(self, plant, ts: float, time_constant: float, input_bounds):
+        if not (time_constant > 0 and np.isfinite(time_constant)):
+            raise ValueError(f"time_constant must be a finite number of seconds > 0, "
+                             f"got {time_constant!r}")
+        self.plant, self.gain = plant, time_constant / ts
+        self.lower, self.upper = (np.asarray(b, float) for b in input_bounds)
+        self._last: np.ndarray | None = None
+
+    def reset(self, x0) -> None:
+        self._last = None
+        if callable(getattr(self.plant, "reset", None)):
+            self.plant.reset(x0)
+
+    def step(self, x, u) -> np.ndarray:
+        """Send ``u`` with its lead and step the plant."""
+        u = np.array(u, float)
+        c = u if self._last is None else u + self.gain * (u - self._last)
+        self._last = u
+        return self.plant.step(x, np.clip(c, self.lower, self.upper))
+
+    def measure(self, x) -> np.ndarray:
+        measure = getattr(self.plant, "measure", None)
+        return measure(x) if callable(measure) else x

@@ -137,10 +137,10 @@ def simulate(config: Config | None = None, controller: Controller | None = None,
             set_point = log.set_points[k] = guide.set_point(perception.local_map, y, t, target)
         sol = _solve(ctl, measured, set_point, seen.visible, plan, errors, seen.velocities,
                      f.model)
+        f.counters.count(sol)
         if sol.success:
             plan, last_good = sol, measured
         else:
-            f.counters.failed(sol)
             plan, sol = _fall_back(ctl, sol, plan, last_good)
         stop.count_fault(sol.status)
         u = plan.u[0]
@@ -282,26 +282,31 @@ def _guide(cfg: Config, model: VehicleModel, local_map: VoxelMap | None) -> Guid
 
 class _SolverCounters:
     """The QPs and steps of one run by solver path (the ``rti`` solver counts them over its
-    life), and the causes of its failed QPs: ``since()`` gives this run's, as ``meta``
-    entries (``qp_failures``: how many failed QPs had each cause, a cause being every QP
-    backend's status, as :attr:`~paper_repro.solvers.rti.RealTimeNMPC.last_failure`)."""
+    life), and why its hard QPs failed: ``since()`` gives this run's, as ``meta`` entries
+    (``qp_failures``: how many failed solves had each cause; ``qp_relaxations``: the same for
+    the solves the relaxed QP rescued; a cause is every QP backend's status, as
+    :attr:`~paper_repro.solvers.rti.RealTimeNMPC.last_failure`)."""
 
     def __init__(self, ctl):
         self.ctl = ctl
         self.before = {name: dict(getattr(ctl, name)) for name in ("qp_counts", "step_counts")
                        if hasattr(ctl, name)}
-        self.causes: dict[str, int] = {}
+        self.causes: dict[str, dict[str, int]] = {"qp_failures": {}, "qp_relaxations": {}}
 
-    def failed(self, sol: NMPCSolution) -> None:
-        cause = getattr(self.ctl, "last_failure", None)
-        if sol.status == "qp_failed" and cause is not None:
+    def count(self, sol: NMPCSolution) -> None:
+        """Count the cause of ``sol`` when its QP failed or was relaxed."""
+        entry, cause = {"qp_failed": ("qp_failures", "last_failure"),
+                        "relaxed": ("qp_relaxations", "last_relaxation")}.get(
+                            sol.status, (None, None))
+        cause = getattr(self.ctl, cause, None) if cause else None
+        if cause is not None:
             key = ", ".join(f"{k} {v}" for k, v in cause.items())
-            self.causes[key] = self.causes.get(key, 0) + 1
+            self.causes[entry][key] = self.causes[entry].get(key, 0) + 1
 
     def since(self) -> dict:
         counts = {name: {k: v - before.get(k, 0) for k, v in getattr(self.ctl, name).items()}
                   for name, before in self.before.items()}
-        return {**counts, **({"qp_failures": self.causes} if self.causes else {})}
+        return {**counts, **{name: c for name, c in self.causes.items() if c}}
 
 
 def _vehicle(config: Config, controller, model: VehicleModel | None) -> VehicleModel:

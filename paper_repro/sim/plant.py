@@ -191,10 +191,20 @@ def plant_for(model: VehicleModel, config: Config, altitude: float = 2.0, scene=
     * ``plant.compensate_latency``: the controller is given the state predicted over both
       latencies with the nominal model
       (:class:`~paper_repro.sim.imperfect.LatencyCompensation`).
+    * ``plant.motor_lag_compensation``: each thrust is sent with a lead that inverts the
+      rotors' lag (:class:`~paper_repro.sim.imperfect.MotorLagCompensation`).
+    * ``plant.hover_thrust_time``: the thrusts sent are scaled by a learnt correction
+      (:class:`~paper_repro.sim.imperfect.HoverThrustEstimate`).
     * ``plant.gust_clearance``: the gust starts when the vehicle comes that close to a cloud
       point of ``scene`` (:class:`GustTrigger`).
     """
-    from paper_repro.sim.imperfect import DelayedInput, EstimatedState, LatencyCompensation
+    from paper_repro.sim.imperfect import (
+        DelayedInput,
+        EstimatedState,
+        HoverThrustEstimate,
+        LatencyCompensation,
+        MotorLagCompensation,
+    )
 
     p, ts = config.plant, config.nmpc.ts
     quadrotor = model.name == "quadrotor"
@@ -216,12 +226,26 @@ def plant_for(model: VehicleModel, config: Config, altitude: float = 2.0, scene=
         plant = QuadrotorPlant(config.quadrotor, ts)
     else:
         plant = ModelPlant(model, ts)
+    if p.motor_lag_compensation is not None:
+        if not quadrotor:
+            raise ValueError(f"plant.motor_lag_compensation is for the quadrotor, not "
+                             f"{model.name!r}")
+        plant = MotorLagCompensation(plant, ts, p.motor_lag_compensation,
+                                     (model.input_lower, model.input_upper))
     if p.estimation != "perfect":
         s_p, s_a, s_v, s_r, latency = ESTIMATES[p.estimation]
         plant = EstimatedState(plant, np.repeat([s_p, s_a, s_v, s_r], 3), latency, p.seed)
     rest_input = model.rest(np.zeros(model.nx))[1]
     if p.delay_steps:
         plant = DelayedInput(plant, p.delay_steps, rest_input)
+    if p.hover_thrust_time is not None:
+        if not quadrotor:
+            raise ValueError(f"plant.hover_thrust_time is for the quadrotor, not "
+                             f"{model.name!r}")
+        q = config.quadrotor
+        plant = HoverThrustEstimate(plant, ts, q.mass, q.gravity, p.hover_thrust_time,
+                                    (model.input_lower, model.input_upper), p.latency_steps(),
+                                    rest_input)
     if p.compensate_latency:
         nominal = QuadrotorPlant(config.quadrotor, ts) if quadrotor else ModelPlant(model, ts)
         plant = LatencyCompensation(plant, nominal, p.latency_steps(), rest_input)

@@ -11,8 +11,8 @@ After each step, in this order:
 4. a flight ends as a fault after more than ``fault_steps`` steps in a row without a usable
    measured state or solve (:data:`~paper_repro.sim.result.FAULT_STATUSES`);
 5. with ``simulation.workspace_exit`` set, a flight has left the workspace when a position
-   state is farther than that outside the vehicle's position bounds (the quadrotor below
-   the ground: a crash).
+   state is farther than that outside it (:func:`workspace`; the quadrotor below the
+   ground: a crash).
 
 A flight that none of these ends stops at its step limit.
 """
@@ -26,7 +26,7 @@ import numpy as np
 from paper_repro.config import Config
 from paper_repro.sim.result import FAULT_STATUSES
 from paper_repro.vehicles.base import VehicleModel
-from paper_repro.world.scene import Scene
+from paper_repro.world.scene import WORKSPACE_LOWER, WORKSPACE_UPPER, Scene
 
 
 class Termination:
@@ -53,9 +53,8 @@ class Termination:
         self.velocity = np.array(model.velocity, dtype=np.intp)
         self.position = np.array(model.position, dtype=np.intp)
         exit_ = sim.workspace_exit
-        self.inside = (None if exit_ is None else
-                       (np.asarray(model.state_lower, float)[self.position] - exit_,
-                        np.asarray(model.state_upper, float)[self.position] + exit_))
+        lower, upper = workspace(scene, model)
+        self.inside = None if exit_ is None else (lower - exit_, upper + exit_)
         self.reached = np.full(len(self.targets), -1)
         self.target_index, self.outcome = 0, "step_limit"
         self.faults_in_a_row, self.error, self._slow = 0, math.inf, 0
@@ -100,6 +99,17 @@ class Termination:
     def _end(self, outcome: str) -> bool:
         self.outcome = outcome
         return True
+
+
+def workspace(scene: Scene, model: VehicleModel) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper), m, the box a flight stays in: the paper's 50 × 50 × 25 m workspace for
+    a scene in space (its floor is the ground, whatever floor the controller's 𝒳 keeps), the
+    vehicle's own position bounds for a planar one (the floor plan of its model)."""
+    if scene.dim == 3:
+        return WORKSPACE_LOWER.copy(), WORKSPACE_UPPER.copy()
+    position = list(model.position)
+    return (np.asarray(model.state_lower, float)[position],
+            np.asarray(model.state_upper, float)[position])
 
 
 def _norm(v: np.ndarray) -> float:

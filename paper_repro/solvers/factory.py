@@ -31,8 +31,6 @@ def make_controller(config: Config | None = None, model: VehicleModel | None = N
         return TrackingNMPC(config, model, **options)
     options.setdefault("max_iter", s.sqp_iterations)
     options.setdefault("qp_solver", s.qp_solver)
-    options.setdefault("line_search", s.line_search)
-    options.setdefault("cold_start", s.cold_start)
-    options.setdefault("relaxed_qp", s.relaxed_qp)
-    options.setdefault("shared_barrier", s.shared_barrier)
+    # line_search, cold_start, relaxed_qp and shared_barrier: the controller reads them from
+    # config.solver unless an option says otherwise.
     return RealTimeNMPC(config, model, **options)

@@ -150,7 +150,7 @@ class TrackingNMPC:
 
         scan, beta, active = ocp.scan.barriers()
         outputs = [h(X[:, j]) for j in range(n + 1)] + [ya]  # y_0..y_N, then y_{N+1} = y_a
-        betas = [beta(y, j * ocp.step, j == n + 1)  # y_j at τ = j·h; y_{N+1} = y_a
+        betas = [beta(y, ocp.stage_time(j), j == n + 1)  # y_{N+1} = y_a
                  for j, y in enumerate(outputs)]
         for i in range(ocp.scan.slots):
             gs = ocp.violations([b[i] for b in betas])

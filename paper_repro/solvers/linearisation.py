@@ -21,7 +21,9 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
     """CasADi function giving every block of the Gauss-Newton QP at the current iterate.
 
     Inputs: x0 (n_x), X (n_x × N: x_1..x_N), U (n_u × N), A (n_a × N+1: a at each stage),
-    p (y_t, then the scan in ``scan``'s layout, the OCP's by default).
+    p (y_t, then the scan in ``scan``'s layout, the OCP's by default, then θ, the weights and
+    barrier parameters of :attr:`~paper_repro.problem.ocp.OCP.runtime_values`: the code does
+    not depend on their values, so another weight reuses it).
     Outputs, flattened column-major and concatenated over stages:
       h: Hessian blocks (stage 0: (a, u); stages 1..N−1: (x, a, s, u); stage N: (x, a, s)),
       q: gradient, j: [A_j B_j] gap Jacobians then the terminal Jacobian C (the −I blocks of the
@@ -37,18 +39,21 @@ def linearisation(ocp: OCP, scan: ScanLayout | None = None,
     only the barrier's does, once. ``False``: β is written out inside each stage's
     expression (its value and derivatives expanded there).
     """
-    scan = scan or ocp.scan
-    yt, params, active, beta = _barriers(ocp, scan)
+    theta = ca.SX.sym("theta", len(ocp.runtime_values))
+    ocp = ocp.with_symbols(theta)  # weights and barrier parameters read at run time
+    scan = (scan or ocp.scan).with_symbols(ocp.scan.eta, ocp.scan.eta_squared, ocp.scan.d_min)
+    yt, params, active, beta = _barriers(ocp, scan, theta)
     stages = _stages(ocp, scan, yt, params, active, beta, values_only, shared_barrier)
     return _horizon(ocp, scan, stages, params, beta, values_only, shared_barrier)
 
 
-def _barriers(ocp: OCP, scan: ScanLayout):
-    """The symbols and the barrier of every region slot: (y_t, the parameter column (y_t, then
-    the scan), the slots' active flags, ``beta(y, params, when=0, at_equilibrium=False)``)."""
+def _barriers(ocp: OCP, scan: ScanLayout, theta):
+    """The symbols and the barrier of every region slot: (y_t, the parameter column (y_t, the
+    scan, then θ), the slots' active flags, ``beta(y, params, when=0,
+    at_equilibrium=False)``)."""
     yt = ca.SX.sym("y_t", ocp.ny)
     scan_params, beta_slots, active = scan.barriers()
-    params = ca.vertcat(yt, scan_params)
+    params = ca.vertcat(yt, scan_params, theta)
     y = ca.SX.sym("y", ocp.ny)
     # β at τ s after the scan (moving regions); static, τ does not enter (the paper's C).
     tau = ca.SX.sym("tau")
@@ -75,7 +80,7 @@ def _stages(ocp: OCP, scan: ScanLayout, yt, params, active, beta, values_only: b
     value b (ns,), its gradient db (ns × p) and the output y_ref it was evaluated at."""
     nx, nu, ns, na, ny = ocp.nx, ocp.nu, scan.slots, ocp.na, ocp.ny
     f, h = ocp.f, ocp.h
-    tau = ca.SX.sym("tau")
+    tau, tau_a = ca.SX.sym("tau"), ca.SX.sym("tau_a")  # τ_j; τ_{N+1} at y_a
 
     def stage_beta(yy, name):
         """β at yy inside a stage, and the stage's extra inputs."""
@@ -127,14 +132,14 @@ def _stages(ocp: OCP, scan: ScanLayout, yt, params, active, beta, values_only: b
     bn, extra_n = stage_beta(h(x), "n")
     ba, extra_a = stage_beta(y_a, "a")
     if bn is None:
-        bn, ba = beta(h(x), params, tau), beta(y_a, params, tau + ocp.step, at_equilibrium=True)
+        bn, ba = beta(h(x), params, tau), beta(y_a, params, tau_a, at_equilibrium=True)
     gn_terms = []
     for i in range(ns):
         gn_terms += [(ocp.violation(s[i], bn[i]), active[i]),
                      (ocp.violation(bn[i], ba[i]), active[i]),
                      (ocp.equilibrium_violation(ba[i]), active[i])]
     eq_res = ca.vertcat(x - x_a, ocp.equilibrium_rows(a))
-    stage_n = ca.Function("stage_n", [x, a, s, params, tau] + extra_n + extra_a,
+    stage_n = ca.Function("stage_n", [x, a, s, params, tau, tau_a] + extra_n + extra_a,
                           terms(ocp.offset_residual(y_a, yt), gn_terms, vn)
                           + ([] if values_only else [ca.vec(ca.jacobian(eq_res, vn))])
                           + [eq_res])
@@ -179,7 +184,8 @@ def _horizon(ocp: OCP, scan: ScanLayout, stages, params, beta, values_only: bool
     U = ca.MX.sym("U", nu, n)
     A = ca.MX.sym("A", na, n + 1)
     P = ca.MX.sym("p", params.shape[0])
-    times = ca.DM(np.arange(1, n) * ocp.step).T  # τ_j = j·h of stages 1..N−1
+    tau = ocp.stage_time  # τ_j = j·h
+    times = ca.DM(tau(np.arange(1, n))).T  # stages 1..N−1
     shared_j = shared_n = shared_a = []
     if shared_barrier:
         # β and ∂β/∂y at every stage's output, one function mapped over the horizon.
@@ -192,10 +198,10 @@ def _horizon(ocp: OCP, scan: ScanLayout, stages, params, beta, values_only: bool
         beta_y = ca.Function("beta_y", [yb, params, tb], outs_b)
         beta_ya = ca.Function("beta_ya", [yb, params, tb], outs_a)
         Y = h.map(n)(X)  # y_1..y_N
-        Bs = beta_y.map(n)(Y, ca.repmat(P, 1, n), ca.DM(np.arange(1, n + 1) * ocp.step).T)
+        Bs = beta_y.map(n)(Y, ca.repmat(P, 1, n), ca.DM(tau(np.arange(1, n + 1))).T)
         Bs = Bs if isinstance(Bs, (list, tuple)) else [Bs]
         Ya = h(ocp.equilibrium(A[:, n])[0])
-        Ba = beta_ya(Ya, P, (n + 1) * ocp.step)
+        Ba = beta_ya(Ya, P, tau(n + 1))
         Ba = Ba if isinstance(Ba, (list, tuple)) else [Ba]
         b0_val = beta_y(h(X0), P, 0.0)
         b0_val = b0_val[0] if isinstance(b0_val, (list, tuple)) else b0_val
@@ -212,7 +218,7 @@ def _horizon(ocp: OCP, scan: ScanLayout, stages, params, beta, values_only: bool
     mid = stage.mapaccum("mid", n - 1, [0], [0])
     outm = mid(out0[-1][nx + na:], X[:, : n - 1], A[:, 1:n], U[:, 1:], ca.repmat(P, 1, n - 1),
                times, *shared_j)
-    outn = stage_n(X[:, n - 1], A[:, n], outm[0][:, n - 2], P, n * ocp.step, *shared_n,
+    outn = stage_n(X[:, n - 1], A[:, n], outm[0][:, n - 2], P, tau(n), tau(n + 1), *shared_n,
                    *shared_a)
     outm = outm[1:]
     cost = out0[0] + ca.sum2(outm[0]) + outn[0]

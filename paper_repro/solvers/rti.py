@@ -57,7 +57,8 @@ from paper_repro.validation import as_vector
 from paper_repro.vehicles.base import VehicleModel
 
 COLD_START_ITERATIONS = 100
-"""The most damped SQP steps a ``"converged"`` cold start takes."""
+"""The most damped SQP steps a ``"converged"`` cold start takes, unless ``max_iter`` allows
+more."""
 
 CAPACITIES = (1, 8, 16, 24, 32, 48, 64)
 """The LiDAR capacities (points per region slot) compiled besides the config's
@@ -93,23 +94,25 @@ class RealTimeNMPC:
         controller with the Euclidean metric. ``False``: every full step (the textbook
         real-time iteration, whose inputs fall into a period-2 oscillation between their
         bounds when a region moves at the vehicle).
-    cold_start : ``"rti"`` (default): a solve without a previous plan (the first of a
-        flight, or the first after :meth:`reset`) takes ``max_iter`` steps from rest, like
-        every other instant. ``"converged"``: that solve iterates the damped SQP
-        (:class:`MeritLineSearch`) until the step is below ``step_tol``, at most
-        :data:`COLD_START_ITERATIONS` steps, so that a single ``solve`` from rest returns a
+    cold_start : ``None`` (default): ``config.solver.cold_start``. ``"rti"``: a solve without
+        a previous plan (the first of a flight, or the first after :meth:`reset`) takes
+        ``max_iter`` steps from rest, like every other instant. ``"converged"``: that solve
+        iterates the damped SQP (:class:`MeritLineSearch`) until the step is below
+        ``step_tol``, at most :data:`COLD_START_ITERATIONS` steps (or ``max_iter``, if more),
+        so that a single ``solve`` from rest returns a
         solution of (21), not one Gauss-Newton step towards one. From rest the full step can
         lead to another local solution than the reference's: over an obstacle rather than
         round it.
-    shared_barrier : ``True``: the barrier of every slot is evaluated once for all stages and
-        read by each (:func:`~paper_repro.solvers.linearisation.linearisation`): a third to a
-        quarter of the C to compile, slightly faster, the same QP to rounding. ``False``
-        (default): written out inside each stage.
-    relaxed_qp : ``True``: a QP that no backend solves (an infeasible linearisation) is
-        solved again with soft state bounds and terminal rows
-        (:class:`~paper_repro.solvers.relaxed_qp.RelaxedQP`, an exact ℓ1 penalty); its step
-        is taken and the solve's status is ``"relaxed"``. ``False`` (default): the solve
-        fails (``"qp_failed"``).
+    shared_barrier : ``None`` (default): ``config.solver.shared_barrier``. ``True``: the
+        barrier of every slot is evaluated once for all stages and read by each
+        (:func:`~paper_repro.solvers.linearisation.linearisation`): a third to a quarter of
+        the C to compile, slightly faster, the same QP to rounding. ``False``: written out
+        inside each stage.
+    relaxed_qp : ``None`` (default): ``config.solver.relaxed_qp``. ``True``: a QP that no
+        backend solves (an infeasible linearisation) is solved again with soft state bounds
+        and terminal rows (:class:`~paper_repro.solvers.relaxed_qp.RelaxedQP`, an exact ℓ1
+        penalty); its step is taken and the solve's status is ``"relaxed"``. ``False``: the
+        solve fails (``"qp_failed"``).
 
     Attributes
     ----------
@@ -120,13 +123,15 @@ class RealTimeNMPC:
     step_counts : SQP steps taken so far: ``full`` (α = 1) and ``shortened`` (α < 1).
     last_failure : why the last ``qp_failed`` solve failed (:attr:`QPChain.last_failure`,
         and ``outside_state_box``: x0 was outside 𝒳, so the relaxed box was imposed).
+    last_relaxation : why the hard QP failed at the first relaxed QP of the last
+        ``"relaxed"`` solve (:attr:`QPChain.last_relaxation`, and ``outside_state_box``).
     """
 
     def __init__(self, config: Config | None = None, model: VehicleModel | None = None,
                  max_iter: int = 1, step_tol: float = 1e-6, qp_solver: str = "riccati-ipm",
                  compile: bool = True, capacities: tuple[int, ...] = CAPACITIES,
-                 line_search: bool | None = None, cold_start: str = "rti",
-                 relaxed_qp: bool = False, shared_barrier: bool = False):
+                 line_search: bool | None = None, cold_start: str | None = None,
+                 relaxed_qp: bool | None = None, shared_barrier: bool | None = None):
         if not (isinstance(max_iter, int) and max_iter >= 1):
             raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
         if not step_tol > 0:
@@ -138,16 +143,20 @@ class RealTimeNMPC:
                              f"{line_search!r}")
         if qp_solver not in QP_SOLVERS:
             raise ValueError(f"qp_solver must be one of {QP_SOLVERS}, got {qp_solver!r}")
+        self.ocp = ocp = OCP(config, model)
+        self.config, self.horizon = ocp.config, ocp.horizon
+        solver = self.config.solver
+        line_search = solver.line_search if line_search is None else line_search
+        cold_start = solver.cold_start if cold_start is None else cold_start
+        relaxed_qp = solver.relaxed_qp if relaxed_qp is None else relaxed_qp
+        shared_barrier = solver.shared_barrier if shared_barrier is None else shared_barrier
         if cold_start not in COLD_STARTS:
             raise ValueError(f"cold_start must be one of {COLD_STARTS}, got {cold_start!r}")
         if not isinstance(relaxed_qp, bool):
             raise ValueError(f"relaxed_qp must be True or False, got {relaxed_qp!r}")
-        self.ocp = ocp = OCP(config, model)
-        self.config, self.horizon = ocp.config, ocp.horizon
-        if line_search is None:
-            line_search = self.config.solver.line_search
         self.max_iter, self.step_tol = max_iter, step_tol
         self.layout = lay = QPLayout.of(ocp)
+        self._theta = ocp.runtime_values  # the run-time numbers of the compiled code
         # The QP solver's library compiles while the linearisations are generated.
         qp_library = (build_qp_library(lay.nz, [lay.nu] * lay.horizon, lay.nc)
                       if compile and qp_solver != "hpipm" and compiler() is not None else None)
@@ -178,6 +187,7 @@ class RealTimeNMPC:
         # Buffers of every solve, whose contents never outlive it: the iterate w (n_w,) (its
         # carried β stay 0) and the step's bounds lb − w, ub − w (n_w,).
         self.last_failure: dict | None = None  # why the last failed solve failed
+        self.last_relaxation: dict | None = None  # why the hard QP of the last relaxed one did
         nw = self.layout.nw
         self._w, self._step_lower, self._step_upper = np.zeros(nw), np.empty(nw), np.empty(nw)
         self._anchor = np.zeros(ocp.nx)  # the move of the previous plan, m (position only)
@@ -217,11 +227,11 @@ class RealTimeNMPC:
         # A rung still compiling is waited for once; the wait is not the solve's time.
         waited = sum(fn.load() for fn in rung[1:] if isinstance(fn, NativeFunction))
         params = np.concatenate([target, self.ladder.pack(visible, ocp.output(x0), rung.scan,
-                                                          velocities)])
+                                                          velocities), self._theta])
         X, U, a = self._guess(x0, previous)
         search, max_iter = self.line_search, self.max_iter
         if previous is None and self._cold_search is not None:  # a converged cold start
-            search, max_iter = self._cold_search, COLD_START_ITERATIONS
+            search, max_iter = self._cold_search, max(max_iter, COLD_START_ITERATIONS)
             search.reset()
         lbw, ubw = self._lbw, self._ubw
         box = ocp.state_box(x0)
@@ -250,7 +260,9 @@ class RealTimeNMPC:
                 self.last_failure = {**self.qp.last_failure,
                                      "outside_state_box": lbw is not self._lbw}
                 break
-            relaxed = relaxed or self.qp.last_relaxed
+            if self.qp.last_relaxed and not relaxed:  # the first relaxed QP of this solve
+                relaxed, self.last_relaxation = True, {
+                    **self.qp.last_relaxation, "outside_state_box": lbw is not self._lbw}
             alpha, merit = search(dw, h, q, gap, eq, float(cost[0]), values)
             dx, du, da = layout.gather(dw)
             if alpha != 1.0:  # (1.0·Δ is Δ, bit for bit: the full step skips the products)
@@ -349,6 +361,8 @@ class QPChain:
     last_failure : why the last QP that no backend solved failed: each backend's status
         (``None`` where it did not run) and whether the QP's data were finite; ``None``
         until a QP fails.
+    last_relaxation : why the hard QP failed the last time the relaxed QP stepped in (the
+        same fields as ``last_failure``); ``None`` until it does.
     """
 
     def __init__(self, layout: QPLayout, qp_solver: str = "riccati-ipm",
@@ -378,6 +392,7 @@ class QPChain:
         self.counts = {"riccati": 0, "hpipm": 0, "failed": 0}
         self.last_ipm_iterations = 0
         self.last_failure: dict | None = None
+        self.last_relaxation: dict | None = None
         if self.budget is not None:
             self.counts["ipm"] = 0
         if relaxed is not None:
@@ -432,22 +447,23 @@ class QPChain:
             hpipm = str(self.hpipm.stats().get("return_status", "unknown"))
         self.last_relaxed = False
         if dw is None or not np.isfinite(dw).all():
-            if self.relaxed is not None:
-                dw = self.relaxed.solve(*bound.arrays)
-                if dw is not None:
-                    self.counts["relaxed"] += 1
-                    self.last_relaxed = True
-                    return dw
-            self.counts["failed"] += 1
-            self.last_failure = {
+            cause = {
                 "active_set": None if res is None else res.status,
                 "interior_point": None if ipm is None else ipm.status,
                 "hpipm": hpipm,
-                **({} if self.relaxed is None else {"relaxed": self.relaxed.last_status}),
                 # the linearisation's numbers (a free variable's bounds are ±inf by design)
                 "finite_data": (all(np.isfinite(a).all() for a in bound.arrays[:5])
                                 and not any(np.isnan(a).any() for a in bound.arrays[5:])),
                 "finite_step": dw is not None}
+            if self.relaxed is not None:
+                dw = self.relaxed.solve(*bound.arrays)
+                if dw is not None:
+                    self.counts["relaxed"] += 1
+                    self.last_relaxed, self.last_relaxation = True, cause
+                    return dw
+                cause["relaxed"] = self.relaxed.last_status
+            self.counts["failed"] += 1
+            self.last_failure = cause
             return None
         return dw
 

@@ -48,6 +48,7 @@ from paper_repro.studies.engine import (
     load_table,
     run_study,
     run_task,
+    saved_table,
 )
 from paper_repro.studies.reproduce import (
     DESCRIPTION,
@@ -113,6 +114,7 @@ __all__ = [
     "run_specs",
     "run_study",
     "run_task",
+    "saved_table",
     "RunSpec",
     "sensing_window",
     "SENSING_WINDOWS",

@@ -318,7 +318,7 @@ EFFECTS: dict[str, tuple[tuple[float, str, dict], ...]] = {
                                       **AIR})
                   for g in (2.0, 4.0)),
     "estimation": ((1.0, "mocap", {"estimation": "mocap"}), (2.0, "vio", {"estimation": "vio"})),
-    "delay": tuple((d, f"{d:g} steps", {"delay_steps": d}) for d in (1, 2)),
+    "delay": tuple((d, f"{d} step" + "s" * (d > 1), {"delay_steps": d}) for d in (1, 2)),
 }
 """Each effect of ``PlantParams`` at each level, alone: (level, its name, the settings).
 Magnitudes for a 2.2 kg quadrotor: motor lags of PX4's simulators (12.5-50 ms) and fitted
@@ -339,9 +339,35 @@ COMBINED: dict[str, dict] = {
 }
 """Every effect at once, at a light and at a moderate level (``PlantParams`` settings)."""
 
-REMEDIED = ("estimation", "delay")
-"""The effects flown again with the remedy ``PlantParams.compensate_latency``: the latencies,
-which the nominal model can predict over."""
+HOVER_THRUST_TIME = 2.0
+"""s, the time constant of the hover-thrust remedy (``PlantParams.hover_thrust_time``)."""
+
+REMEDIES: dict[str, Callable[[dict], dict]] = {
+    "compensated": lambda effect: {"compensate_latency": True},
+    "hover thrust": lambda effect: {"hover_thrust_time": HOVER_THRUST_TIME},
+    "lag compensated": lambda effect: {"motor_lag_compensation": effect["motor_lag"]},
+}
+"""Each remedy by name (the ``remedy`` column): the ``PlantParams`` settings that apply it,
+given the cell's own settings. ``compensated`` predicts the measured state over the latencies
+with the nominal model; ``hover thrust`` scales the thrusts by the thrust the vehicle is
+learnt to lack; ``lag compensated`` sends each thrust with the lead that inverts the rotors'
+lag, for its time constant as identified (the cell's ``motor_lag``)."""
+
+REMEDIED = {"estimation": "compensated", "delay": "compensated", "thrust": "hover thrust",
+            "mass": "hover thrust", "motor_lag": "lag compensated"}
+"""The effects flown again with a remedy (:data:`REMEDIES`): the latencies, which the
+nominal model can predict over; a vehicle weaker or heavier than the nominal one; and rotors
+that lag."""
+
+
+def with_remedy(effect: dict, remedy: str) -> dict:
+    """The ``PlantParams`` settings of the cell ``effect`` with ``remedy`` (``"none"``; a name
+    of :data:`REMEDIES`; ``"all"``: every remedy that applies to ``effect``)."""
+    if remedy == "none":
+        return dict(effect)
+    names = [n for n in REMEDIES if n != "lag compensated" or "motor_lag" in effect] \
+        if remedy == "all" else [remedy]
+    return {**effect, **{k: v for n in names for k, v in REMEDIES[n](effect).items()}}
 
 
 def hardware_spec(seed: int, metric: str, changes: dict, tag: str, steps: int,
@@ -369,8 +395,9 @@ def hardware(group: str, quick: bool = False, scenes: int | None = None,
     ``quick``) × both metrics against RotorPy, with every effect off (``effect`` ``"none"``,
     the baseline the cells are paired with) and with each effect of the study ``group`` of
     :data:`HARDWARE_GROUPS` alone at each level of :data:`EFFECTS`; the latencies
-    (:data:`REMEDIED`) once more with the remedy (``remedy`` ``"compensated"``). What breaks
-    first, and does the smoothed metric keep its smooth thrusts?"""
+    and the vehicle's thrust and mass (:data:`REMEDIED`) once more with their remedy (the
+    ``remedy`` column). What breaks first, and does the smoothed metric keep its smooth
+    thrusts?"""
     n, base, steps = _passages(quick, scenes, 50, base)
     steps = QUICK_STEPS if quick else HARDWARE_STEPS
     cells = [("none", 0.0, "off", {}, "none")]
@@ -378,11 +405,11 @@ def hardware(group: str, quick: bool = False, scenes: int | None = None,
         for level, name, changes in EFFECTS[effect]:
             cells.append((effect, level, name, changes, "none"))
             if effect in REMEDIED:
-                cells.append((effect, level, name, {**changes, "compensate_latency": True},
-                              "compensated"))
+                cells.append((effect, level, name, with_remedy(changes, REMEDIED[effect]),
+                              REMEDIED[effect]))
     specs = [hardware_spec(seed, metric, changes,
                            "" if effect == "none" else
-                           f"{effect}-{level:g}" + ("-comp" if remedy != "none" else ""),
+                           f"{effect}-{level:g}" + _remedy_tag(remedy),
                            steps, base, (("effect", effect), ("level", level),
                                          ("level_name", name), ("remedy", remedy)))
              for effect, level, name, changes, remedy in cells
@@ -390,29 +417,34 @@ def hardware(group: str, quick: bool = False, scenes: int | None = None,
     return Study(group + ("-quick" if quick else ""), tuple(specs),
                  f"{n} random passages x both metrics against RotorPy: every effect off, "
                  f"each of {HARDWARE_GROUPS[group]} alone per level"
-                 + (", the latencies compensated" if set(REMEDIED) & set(HARDWARE_GROUPS[group])
-                    else ""))
+                 + "".join(f", {effect} with the remedy {REMEDIED[effect]!r}"
+                           for effect in HARDWARE_GROUPS[group] if effect in REMEDIED))
+
+
+def _remedy_tag(remedy: str) -> str:
+    """The run name's suffix of a remedy: ``""`` for none, else its name hyphenated."""
+    return "" if remedy == "none" else "-" + remedy.replace(" ", "-")
 
 
 def hardware_combined(quick: bool = False, scenes: int | None = None,
                       base: Config | None = None, remedied: int = 50) -> Study:
     """Towards hardware, every effect at once: ``scenes`` random passages (300; 1 with
     ``quick``) × both metrics against RotorPy at each level of :data:`COMBINED`; the first
-    ``remedied`` of them once more with the remedy for the latencies. Zero collisions in 300
-    passages bound the rate below 1 % at 95 % confidence."""
+    ``remedied`` of them once more with every remedy of :data:`REMEDIES` at once (``remedy``
+    ``"all"``). Zero collisions in 300 passages bound the rate below 1 % at 95 % confidence."""
     n, base, _ = _passages(quick, scenes, 300, base)
     steps = QUICK_STEPS if quick else HARDWARE_STEPS
-    specs = [hardware_spec(seed, metric, {**changes, "compensate_latency": remedy != "none"},
-                           f"{level}" + ("-comp" if remedy != "none" else ""), steps, base,
+    specs = [hardware_spec(seed, metric, with_remedy(changes, remedy),
+                           f"{level}" + _remedy_tag(remedy), steps, base,
                            (("effect", "combined"), ("level", float(i + 1)),
                             ("level_name", level), ("remedy", remedy)))
              for i, (level, changes) in enumerate(COMBINED.items())
-             for remedy in ("none", "compensated")
+             for remedy in ("none", "all")
              for metric in ("smooth", "euclidean")
              for seed in range(n if remedy == "none" else min(n, remedied))]
     return Study("hardware_combined" + ("-quick" if quick else ""), tuple(specs),
                  f"{n} random passages x both metrics against RotorPy, every effect at once "
-                 f"at {tuple(COMBINED)}; {min(n, remedied)} of them with the remedy")
+                 f"at {tuple(COMBINED)}; {min(n, remedied)} of them with every remedy")
 
 
 STUDIES: dict[str, Callable[..., Study]] = {"monte_carlo": monte_carlo, "eta_sweep": eta_sweep,

@@ -186,6 +186,27 @@ def load_table(directory, timings: bool = True):
     return table
 
 
+
+def saved_table(study: Study, directory):
+    """The table :func:`run_study` saved in ``directory`` for exactly ``study``, or ``None``.
+
+    It is returned (as :func:`load_table` reads it) only when ``study.json`` lists the same runs
+    under the same keys (a key covers a run's whole configuration and the golden hash it is
+    flown with) and every row is ``ok``. A command that saves a study per group can so carry
+    its finished groups to another machine without their run cache, and fly only the rest."""
+    directory = Path(directory)
+    try:
+        meta = json.loads((directory / "study.json").read_text())
+        table = load_table(directory)
+    except (OSError, ValueError):
+        return None
+    keys = [s.get("key") for s in meta.get("specs", [])]
+    if keys != [s.key for s in study.specs] or len(table) != len(keys):
+        return None
+    if not (table["status"] == "ok").all():
+        return None
+    return table
+
 # --- helpers --------------------------------------------------------------------------------
 
 def _run_on_dask(specs, runs_dir: str, force: bool, done, workers, scheduler, client,

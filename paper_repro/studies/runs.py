@@ -83,11 +83,17 @@ class RunSpec:
 def run_key(config: Config, max_steps: int, scene_fingerprint: str) -> str:
     """SHA-256 (hex) of a run: ``config.key_dict()`` (:data:`~paper_repro.config_history.ADDED`),
     ``max_steps``, the scene fingerprint and the golden hash of the layer the run uses
-    (:func:`~paper_repro.evidence.golden.layer_of`: the code's behaviour)."""
+    (:func:`~paper_repro.evidence.golden.layer_of`: the code's behaviour); and the OpenBLAS
+    kernel, only when it is not the one :mod:`paper_repro._blas` asks for (so runs flown
+    with another kernel never mix with the others)."""
+    from paper_repro import _blas
     from paper_repro.evidence.golden import golden_hash, layer_of
 
-    return json_hash({"config": config.key_dict(), "max_steps": int(max_steps),
-                  "scene": scene_fingerprint, "golden": golden_hash(layer_of(config))})
+    key = {"config": config.key_dict(), "max_steps": int(max_steps),
+           "scene": scene_fingerprint, "golden": golden_hash(layer_of(config))}
+    if (kernel := _blas.other_kernel()) is not None:
+        key["blas"] = kernel
+    return json_hash(key)
 
 
 def rekey(results_dir=None) -> dict:
