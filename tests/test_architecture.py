@@ -12,7 +12,7 @@ ROOT = Path(__file__).parents[1] / "paper_repro"
 
 LAYERS = (
     {"config", "config_history", "presets", "validation", "paths", "progress",
-     "_native"},  # imported by all
+     "_native", "_blas"},  # imported by all
     {"vehicles"},
     {"problem"},
     {"solvers"},
