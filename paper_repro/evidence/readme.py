@@ -149,7 +149,7 @@ def solver_speed(scenario: str) -> str:
              "rti-damped-riccati": "rti-damped-riccati (damped, riccati)",
              "sqp-converged": "sqp-converged"}
     ipm = "ipm_qps" in table and bool(table["ipm_qps"].any())
-    rows = [[names.get(r.solver, r.solver), f"{r.steps:,}", r.outcome.replace("_", " "),
+    rows = [[names.get(r.solver, r.solver), f"{r.steps:,}", r.outcome,
              fmt.ms(r.median_ms), fmt.ms(r.p95_ms), fmt.ms(r.p99_ms),
              fmt.ms(r.max_ms), f"{r.iterations_median:.0f}", f"{r.failures:,}",
              *([f"{r.ipm_qps:,}"] if ipm else []),
@@ -179,7 +179,7 @@ def swept_pillar() -> str:
     rows = [[r.variant, fmt.ms(r.median_ms), tail(r.p99_ms), tail(r.max_ms),
              f"{r.over_ts:,} of {r.steps:,}", tail(r.least_p99_ms), tail(r.least_max_ms),
              f"{r.least_over_ts:,}", f"{r.ipm_qps:,}", iterations(r), f"{r.hpipm_qps:,}",
-             f"{r.min_clearance_m:.3f} m", r.outcome.replace("_", " ")]
+             f"{r.min_clearance_m:.3f} m", r.outcome]
             for r in table.itertuples()]
     return fmt.markdown_table(["variant", "median ms", "p99 ms", "max ms", "calls over T_s",
                                f"least of {passes}: p99 ms", "max ms", "over T_s",
