@@ -37,7 +37,14 @@ runs, AVX-512 or not."""
 NEEDS = frozenset({"avx2", "fma"})
 """The CPU flags :data:`KERNEL` needs."""
 
+X86_KERNELS = ("Prescott", "Core2", "Penryn", "Dunnington", "Nehalem", "Atom", "Opteron",
+               "Opteron_SSE3", "Barcelona", "Bobcat", "Nano", "Sandybridge", "Bulldozer",
+               "Piledriver", "Steamroller", "Excavator", "Haswell", "Zen", "SkylakeX",
+               "Cooperlake", "SapphireRapids")
+"""The x86-64 kernels ``PAPER_REPRO_BLAS`` may name (OpenBLAS's own names for them)."""
 
+
+@functools.cache
 def cpu_flags() -> frozenset[str]:
     """The flags of this CPU as Linux lists them in ``/proc/cpuinfo`` (empty elsewhere)."""
     try:
@@ -50,12 +57,17 @@ def cpu_flags() -> frozenset[str]:
     return frozenset()
 
 
+def _x86_64() -> bool:
+    """Whether this machine is x86-64, where OpenBLAS's kernels are :data:`X86_KERNELS`."""
+    return platform.machine() in ("x86_64", "AMD64")
+
+
 def wanted_kernel(flags: frozenset[str] | None = None) -> str | None:
     """The kernel paper_repro asks for on a CPU with ``flags`` (this one by default):
     :data:`KERNEL` if it has :data:`NEEDS`, else ``None`` (another architecture, or an x86-64
     CPU below v3), where OpenBLAS chooses alone."""
     if flags is None:
-        if platform.system() != "Linux" or platform.machine() not in ("x86_64", "AMD64"):
+        if platform.system() != "Linux" or not _x86_64():
             return None
         flags = cpu_flags()
     return KERNEL if NEEDS <= flags else None
@@ -64,8 +76,13 @@ def wanted_kernel(flags: frozenset[str] | None = None) -> str | None:
 def pin() -> str | None:
     """Set ``OPENBLAS_CORETYPE`` to ``PAPER_REPRO_BLAS`` if that names a kernel, to
     :func:`wanted_kernel` if it is unset; leave it alone if it is ``system``. Return the
-    kernel asked of OpenBLAS (``None``: OpenBLAS chooses)."""
+    kernel asked of OpenBLAS (``None``: OpenBLAS chooses). A name OpenBLAS does not know
+    (on x86-64) is refused, naming the variable."""
     choice = os.environ.get(CHOICE, "").strip()
+    if choice and choice != "system" and _x86_64() and choice.lower() not in {
+            k.lower() for k in X86_KERNELS}:
+        raise ValueError(f"{CHOICE} must be 'system' or one of {', '.join(X86_KERNELS)}, "
+                         f"got {choice!r}")
     kernel = wanted_kernel() if not choice else None if choice == "system" else choice
     if kernel is not None:
         os.environ[VARIABLE] = kernel
@@ -97,14 +114,15 @@ def other_kernel() -> str | None:
 
 def check_kernel() -> None:
     """Raise ``RuntimeError`` if NumPy's OpenBLAS does not run the kernel asked for: NumPy was
-    loaded before paper_repro could ask (module docstring)."""
+    loaded before paper_repro could ask (module docstring), or this CPU cannot run it."""
     asked = os.environ.get(VARIABLE)
     running = numpy_kernel()
     if asked and running and running.lower() != asked.lower():
         raise RuntimeError(
-            f"NumPy's OpenBLAS runs the {running} kernel, not {asked} ({VARIABLE}): NumPy was "
-            "imported before paper_repro. Import paper_repro first, or set "
-            f"{VARIABLE}={asked} in the environment, then make the evidence again.")
+            f"NumPy's OpenBLAS runs the {running} kernel, not {asked} ({VARIABLE}): either "
+            "NumPy was imported before paper_repro (import paper_repro first, or set "
+            f"{VARIABLE}={asked} in the environment), or this CPU cannot run {asked} (choose "
+            f"another with {CHOICE}). Then make the evidence again.")
 
 
 pin()

@@ -320,13 +320,22 @@ def test_importing_paper_repro_first_pins_one_blas_kernel():
             "except RuntimeError as e:\n    print('refused', e)")
     said = _kernel_in_a_new_process(late, OPENBLAS_CORETYPE="Sandybridge")
     assert said.startswith("refused") and "OPENBLAS_CORETYPE" in said
+    # A kernel OpenBLAS does not know is refused when paper_repro is imported, by name.
+    said = _kernel_in_a_new_process("import paper_repro", PAPER_REPRO_BLAS="Skylake-X")
+    assert "PAPER_REPRO_BLAS must be 'system' or one of" in said and "'Skylake-X'" in said
 
 
 def test_a_run_flown_with_another_blas_kernel_is_cached_under_another_key(monkeypatch):
     from paper_repro import Config, _blas
+    from paper_repro.evidence.golden import golden_hash, layer_of
+    from paper_repro.paths import json_hash
     from paper_repro.studies.runs import run_key
 
+    # with the kernel asked for, a run keeps the key it had before kernels were pinned
+    monkeypatch.setattr(_blas, "other_kernel", lambda: None)
     asked = run_key(Config(), 100, "scene")
+    assert asked == json_hash({"config": Config().key_dict(), "max_steps": 100,
+                               "scene": "scene", "golden": golden_hash(layer_of(Config()))})
     monkeypatch.setattr(_blas, "other_kernel", lambda: "Sandybridge")
     other = run_key(Config(), 100, "scene")
     monkeypatch.setattr(_blas, "other_kernel", lambda: "Zen")
