@@ -8,7 +8,7 @@ whose failed and relaxed solves add up to more than ``--min-solves``, and the ru
 
 * ``as designed``: the study's own configuration (the relaxed QP on, the design's floor);
 * ``hard QP``: the relaxed QP off and the lowest altitude of 𝒳 back to the paper's
-  (``NMPCParams().state_lower``), the controller the studies flew before either remedy.
+  (``QuadrotorParams().state_lower``), the controller the studies flew before either remedy.
 
 Every solve whose hard QP no backend solved is recorded with its cause, whether the relaxed
 QP then stepped in (``path`` ``relaxed``) or the solve failed (``failed``)
@@ -42,7 +42,7 @@ import numpy as np
 import pandas as pd
 from moving_heldout import heldout_study
 
-from paper_repro import NMPCParams, paths
+from paper_repro import QuadrotorParams, paths
 from paper_repro import studies as S
 from paper_repro.evidence.golden import layer_of, stamp
 from paper_repro.studies.runs import fly
@@ -91,11 +91,11 @@ VARIANTS = ("as designed", "hard QP")
 def hard_qp(spec):
     """``spec`` with the relaxed QP off and the paper's 𝒳 (no floor above the ground)."""
     cfg = spec.config
-    lower = list(cfg.nmpc.state_lower)
-    lower[2] = NMPCParams().state_lower[2]
+    lower = list(cfg.quadrotor.state_lower)
+    lower[2] = QuadrotorParams().state_lower[2]
     return dataclasses.replace(spec, config=dataclasses.replace(
         cfg, solver=dataclasses.replace(cfg.solver, relaxed_qp=False),
-        nmpc=dataclasses.replace(cfg.nmpc, state_lower=tuple(lower))))
+        quadrotor=dataclasses.replace(cfg.quadrotor, state_lower=tuple(lower))))
 
 
 def explain(job) -> tuple[dict, list[dict]]:

@@ -14,10 +14,21 @@ MOVED = {
     ("nmpc", "qp_solver"): ("solver", "qp_solver"),
     ("simulation", "lidar_range"): ("sensor", "range"),
     ("simulation", "prediction"): ("nmpc", "prediction"),
+    ("nmpc", "state_lower"): ("quadrotor", "state_lower"),
+    ("nmpc", "state_upper"): ("quadrotor", "state_upper"),
+    ("nmpc", "input_lower"): ("quadrotor", "input_lower"),
+    ("nmpc", "input_upper"): ("quadrotor", "input_upper"),
 }
 """Settings that moved between parts, (old part, old name) → (new part, new name): the
-solver's options left the problem's ``nmpc`` part, and the LiDAR's range and the prediction of
-moving regions left the mission (``simulation``)."""
+solver's options left the problem's ``nmpc`` part, the LiDAR's range and the prediction of
+moving regions left the mission (``simulation``), and the quadrotor's boxes 𝒳 and 𝒰 joined
+the rest of its data (``quadrotor``)."""
+
+KEYED_IN_FORMER_PLACE = (("nmpc", "state_lower"), ("nmpc", "state_upper"),
+                         ("nmpc", "input_lower"), ("nmpc", "input_upper"))
+"""Settings of :data:`MOVED` that a run's key, and a study's record of its runs, still name in
+their former place (:func:`as_keyed`): they moved after the committed evidence was flown, and
+a move changes no flight, so the keys and the records stay as they were."""
 
 
 ADDED = {
@@ -61,6 +72,25 @@ def without_added(data: dict, defaults: dict) -> dict:
         elif isinstance(data.get(part), dict) and data[part].get(name, None) == neutral:
             del data[part][name]
     return data
+
+
+def as_keyed(data: dict) -> dict:
+    """``data`` (a :meth:`Config.to_dict`) with the settings of :data:`KEYED_IN_FORMER_PLACE`
+    moved back to their former place: the layout a run's key hashes and a study's
+    ``study.json`` records."""
+    data = {part: dict(values) if isinstance(values, dict) else values
+            for part, values in data.items()}
+    for old_part, old_name in KEYED_IN_FORMER_PLACE:
+        new_part, new_name = MOVED[(old_part, old_name)]
+        if isinstance(data.get(new_part), dict) and new_name in data[new_part]:
+            data.setdefault(old_part, {})[old_name] = data[new_part].pop(new_name)
+    return data
+
+
+def keyed(data: dict, defaults: dict) -> dict:
+    """What a run's key hashes of ``data`` (a :meth:`Config.to_dict`, or one read from a
+    ``config.json``): :func:`without_added`, then :func:`as_keyed`."""
+    return as_keyed(without_added(data, defaults))
 
 
 def _plain(values: dict) -> dict:

@@ -171,12 +171,12 @@ def moving_design_controller(config: Config, metric: str) -> Config:
     """``config`` with the design's controller: the barrier of :data:`MOVING_DESIGN` for
     ``metric``, the prediction step :data:`MOVING_PREDICTION_TS` and the floor
     :data:`MOVING_FLOOR`."""
-    lower = list(config.nmpc.state_lower)
+    lower = list(config.quadrotor.state_lower)
     lower[2] = MOVING_FLOOR
     return dataclasses.replace(
         config, barrier=dataclasses.replace(config.barrier, **MOVING_DESIGN[metric]),
-        nmpc=dataclasses.replace(config.nmpc, prediction_ts=MOVING_PREDICTION_TS,
-                                 state_lower=tuple(lower)))
+        nmpc=dataclasses.replace(config.nmpc, prediction_ts=MOVING_PREDICTION_TS),
+        quadrotor=dataclasses.replace(config.quadrotor, state_lower=tuple(lower)))
 
 
 def moving_design(config: Config, metric: str) -> Config:

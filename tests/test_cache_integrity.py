@@ -164,7 +164,34 @@ def _former_layout(config: dict) -> dict:
                        line_search=solver["line_search"], qp_solver=solver["qp_solver"])
     old["simulation"].update(lidar_range=old["sensor"].pop("range"),
                              prediction=old["nmpc"].pop("prediction"))
+    for name in QUADROTOR_BOX:
+        old["nmpc"][name] = old["quadrotor"].pop(name)
     return old
+
+
+QUADROTOR_BOX = ("state_lower", "state_upper", "input_lower", "input_upper")
+
+
+def test_the_quadrotor_box_moved_to_the_vehicle_and_every_key_stays():
+    """𝒳 and 𝒰 live with the quadrotor's other data; a ``config.json`` that gives them in the
+    ``nmpc`` part loads into the same configuration, and a run's key still hashes them where
+    they were (the committed tables hold those keys); both places at once are refused."""
+    from paper_repro.config_history import without_added
+    from paper_repro.presets import moving_design_controller
+
+    cfg = moving_design_controller(Config(nmpc=NMPCParams(prediction="oracle")), "smooth")
+    assert cfg.quadrotor.state_lower[2] > 0 and not hasattr(cfg.nmpc, "state_lower")
+    former = json.loads(json.dumps(cfg.to_dict(), default=str))
+    for name in QUADROTOR_BOX:
+        former["nmpc"][name] = former["quadrotor"].pop(name)
+    assert Config.from_dict(former) == cfg == Config.from_dict(cfg.to_dict())
+    keyed = json.loads(json.dumps(cfg.key_dict(), default=str))
+    assert keyed == without_added(former, Config().to_dict())
+    assert Config.from_dict(cfg.key_dict()) == cfg
+    both = json.loads(json.dumps(cfg.to_dict(), default=str))
+    both["nmpc"]["state_lower"] = both["quadrotor"]["state_lower"]
+    with pytest.raises(ValueError, match=r"nmpc\.state_lower .*quadrotor\.state_lower"):
+        Config.from_dict(both)
 
 
 def _as_written_by_former_code(folder, golden):

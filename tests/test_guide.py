@@ -13,7 +13,7 @@ from scipy.spatial import cKDTree
 
 from paper_repro.analysis.metrics import COLLISION_CLEARANCE
 from paper_repro.config import Config, GuideParams, SensorParams
-from paper_repro.config_history import ADDED
+from paper_repro.config_history import ADDED, as_keyed
 from paper_repro.sim.loop import simulate
 from paper_repro.studies.catalogue import passage_config, with_guide, with_map
 from paper_repro.world.guide import NEIGHBOURS, Guide, shortest_path, turn_towards
@@ -151,7 +151,7 @@ def test_the_guide_off_keeps_every_key_and_on_enters_it():
     back from a file that lacks it, and a guided config keys and reads back whole."""
     assert ("guide", None) in ADDED
     cfg = Config()
-    before = cfg.to_dict()
+    before = as_keyed(cfg.to_dict())  # the quadrotor's box where keys name it
     for part, name in ADDED:  # the parts added whole (the guide, the tracker), then settings
         if name is None:
             del before[part]

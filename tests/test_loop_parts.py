@@ -88,7 +88,7 @@ def test_the_workspace_is_the_world_box_not_the_floor_the_controller_keeps():
     but above the ground is still inside the workspace."""
     kalman = Config(nmpc=dataclasses.replace(Config().nmpc, prediction="kalman"))
     cfg = moving_design_controller(kalman, "smooth")
-    assert cfg.nmpc.state_lower[2] == MOVING_FLOOR > 0
+    assert cfg.quadrotor.state_lower[2] == MOVING_FLOOR > 0
     stop = Termination(cfg, TWO_TARGETS, quadrotor_model(cfg))
     for z, leaves in ((0.2, False), (-0.01, True)):
         y = np.array([0.0, 0.0, z])

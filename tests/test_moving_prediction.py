@@ -172,7 +172,7 @@ def test_the_equilibrium_lookahead_is_checked_needs_a_prediction_and_keeps_every
     """Bad values are named; the static prediction refuses it; at its neutral value 0 a run's
     cache key is the one it had before the setting existed (config_history.ADDED), any other value
     changes it, and a stored configuration reads back whole."""
-    from paper_repro.config_history import ADDED
+    from paper_repro.config_history import ADDED, as_keyed
     from paper_repro.evidence.golden import golden_hash
     from paper_repro.paths import json_hash
     from paper_repro.studies.runs import run_key
@@ -193,7 +193,7 @@ def test_the_equilibrium_lookahead_is_checked_needs_a_prediction_and_keeps_every
     neutral = Config.from_dict({"solver": {}, "simulation": {}})
     for cfg in (neutral, dataclasses.replace(on, barrier=BarrierParams(), solver=neutral.solver,
                                              simulation=neutral.simulation)):
-        before = cfg.to_dict()
+        before = as_keyed(cfg.to_dict())  # the quadrotor's box where keys name it
         for part, name in ADDED:  # the layout before the settings (and parts) added since
             if name is None:
                 del before[part]

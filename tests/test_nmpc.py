@@ -45,14 +45,14 @@ def scene():
 
 
 def _check_bounds(ctl, sol, x0, tol=1e-6):
-    p = ctl.config.nmpc
+    p = ctl.config.quadrotor
     xl, xu = np.array(p.state_lower), np.array(p.state_upper)
     assert np.all(sol.u >= np.array(p.input_lower) - tol)
     assert np.all(sol.u <= np.array(p.input_upper) + tol)
     # x_0 is the measurement; x_1..x_N must lie in 𝒳.
     assert np.allclose(sol.x[0], x0, atol=1e-9)
     assert np.all(sol.x[1:] >= xl - tol) and np.all(sol.x[1:] <= xu + tol)
-    xal, xau, ual, uau = p.relaxed_bounds()
+    xal, xau, ual, uau = p.relaxed_bounds(ctl.config.nmpc.lam)
     assert np.all(sol.x_a >= xal - tol) and np.all(sol.x_a <= xau + tol)
     assert np.all(sol.u_a >= ual - tol) and np.all(sol.u_a <= uau + tol)
 
@@ -107,11 +107,11 @@ def test_target_outside_workspace_keeps_x_a_in_relaxed_box(smooth_controller):
         _check_bounds(ctl, sol, x)
         plan = sol
         x = plant_step(x, sol.u[0], ctl.config.nmpc.ts)
-    xal, xau, _, _ = ctl.config.nmpc.relaxed_bounds()
+    xal, xau, _, _ = ctl.config.quadrotor.relaxed_bounds(ctl.config.nmpc.lam)
     # Pushed against the relaxed box, not beyond it.
     assert sol.x_a[0] == pytest.approx(xau[0], abs=1e-6)
     assert sol.x_a[2] == pytest.approx(xau[2], abs=1e-6)
-    assert xau[0] < ctl.config.nmpc.state_upper[0]
+    assert xau[0] < ctl.config.quadrotor.state_upper[0]
 
 
 @pytest.mark.slow
@@ -175,7 +175,7 @@ def test_euclidean_variant_agrees_with_the_fast_path_near_the_corner(scene):
     fast = simulate(rti, controller=make_controller(rti), max_steps=150, progress=False,
                     scene=near)
     assert ref.failures == 0 and ref.visible_points.max() > 0
-    p = cfg.nmpc
+    p = cfg.quadrotor
     assert np.all(ref.u >= np.array(p.input_lower) - 1e-6)
     assert np.all(ref.u <= np.array(p.input_upper) + 1e-6)
     assert np.all(ref.x >= np.array(p.state_lower) - 1e-6)

@@ -293,7 +293,7 @@ def test_a_model_without_parametrisation_reaches_the_same_optimum(scene):
 
 def test_the_quadrotor_equilibrium_box_is_the_relaxed_box_at_position_and_yaw():
     ocp = OCP(_config())
-    xal, xau, _, _ = ocp.config.nmpc.relaxed_bounds()
+    xal, xau, _, _ = ocp.config.quadrotor.relaxed_bounds(ocp.config.nmpc.lam)
     lo, hi = ocp.equilibrium_box
     np.testing.assert_array_equal(lo, xal[[0, 1, 2, 5]])
     np.testing.assert_array_equal(hi, xau[[0, 1, 2, 5]])

@@ -248,7 +248,7 @@ def test_the_view_window_starts_before_the_first_point_in_view_and_titles_say_zo
     assert view_window(seen, width=100.0) == pytest.approx((24.0, 59.99))  # clipped to the run
     assert view_window(result) == pytest.approx((0.0, 20.0))  # nothing seen: the start
     fig = plot_thrusts(seen, t_range=view_window(seen), full_range=True)
-    lower, upper = seen.config.nmpc.input_lower, seen.config.nmpc.input_upper
+    lower, upper = seen.config.quadrotor.input_lower, seen.config.quadrotor.input_upper
     for ax, lo, hi in zip(fig.axes, lower, upper, strict=True):  # the whole box 𝒰, padded
         bottom, top = ax.get_ylim()
         assert bottom < lo < hi < top and top - bottom < 1.1 * (hi - lo)

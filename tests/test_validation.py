@@ -47,19 +47,19 @@ def encounter():
 def test_bounds_must_be_ordered(lower, upper, index):
     """lower > upper (or equal) in 𝒳 or 𝒰 is refused, naming the index and both fields (it
     used to be accepted and to fail inside HPIPM at the first solve)."""
-    p = NMPCParams()
+    p = QuadrotorParams()
     lo = list(getattr(p, lower))
     hi = list(getattr(p, upper))
     lo[index], hi[index] = hi[index] + 1.0, lo[index]
     with pytest.raises(ValueError) as exc:
-        NMPCParams(**{lower: tuple(lo), upper: tuple(hi)})
+        QuadrotorParams(**{lower: tuple(lo), upper: tuple(hi)})
     assert f"{lower}[{index}]" in _one_line(exc) and f"{upper}[{index}]" in str(exc.value)
 
 
 def test_hover_must_be_an_admissible_input():
     """An input box that does not hold the hover thrust has no artificial equilibrium."""
     with pytest.raises(ValueError, match=r"input_lower/input_upper .*hover thrust") as exc:
-        Config(nmpc=NMPCParams(input_upper=(5.0, 5.0, 5.0, 5.0)))
+        Config(quadrotor=QuadrotorParams(input_upper=(5.0, 5.0, 5.0, 5.0)))
     _one_line(exc)
 
 

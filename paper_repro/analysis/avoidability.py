@@ -65,14 +65,14 @@ class PointMassBounds:
     @classmethod
     def of_quadrotor(cls, config: Config | None = None) -> PointMassBounds:
         """The bounds of ``config``'s quadrotor: velocities and workspace from 𝒳
-        (``nmpc.state_lower``/``state_upper``), lateral acceleration g·tan θ_max at the tilt
+        (``quadrotor.state_lower``/``state_upper``), lateral acceleration g·tan θ_max at the tilt
         bound, vertical acceleration from −g to 4·f_max/m − g."""
         cfg = config or Config()
-        lo, hi = np.asarray(cfg.nmpc.state_lower), np.asarray(cfg.nmpc.state_upper)
         q = cfg.quadrotor
+        lo, hi = np.asarray(q.state_lower), np.asarray(q.state_upper)
         tilt = min(abs(lo[3]), hi[3], abs(lo[4]), hi[4])
         lateral = q.gravity * math.tan(tilt)
-        up = 4 * max(cfg.nmpc.input_upper) / q.mass - q.gravity
+        up = 4 * max(q.input_upper) / q.mass - q.gravity
         return cls(tuple(lo[6:9]), tuple(hi[6:9]), (-lateral, -lateral, -q.gravity),
                    (lateral, lateral, up), tuple(lo[:3]), tuple(hi[:3]))
 

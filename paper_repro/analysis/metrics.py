@@ -302,8 +302,8 @@ def _solver_columns(result) -> dict:
     """Solve times (ms), iterations, failures, faults and the steps outside 𝒳."""
     solve_ms = np.asarray(result.solve_time, float) * 1e3
     x = np.asarray(result.x, float)[1:]  # the states reached, not the start
-    nmpc = result.config.nmpc
-    lower, upper = np.asarray(nmpc.state_lower), np.asarray(nmpc.state_upper)
+    box = result.config.quadrotor
+    lower, upper = np.asarray(box.state_lower), np.asarray(box.state_upper)
     outside = (float(np.sum(np.any((x < lower) | (x > upper), axis=1)))
                if x.ndim == 2 and x.shape[1] == lower.size else float("nan"))
     return {"solve_mean_ms": float(np.mean(solve_ms)),
@@ -364,7 +364,7 @@ def plant_columns(result) -> dict:
     """
     cfg, ts = result.config, result.config.nmpc.ts
     u = np.asarray(result.u, float)
-    lower, upper = np.asarray(cfg.nmpc.input_lower), np.asarray(cfg.nmpc.input_upper)
+    lower, upper = np.asarray(cfg.quadrotor.input_lower), np.asarray(cfg.quadrotor.input_upper)
     at_bound = np.any((u <= lower + 1e-3) | (u >= upper - 1e-3), axis=1)
     margin = np.sqrt(2 * cfg.barrier.d_min)
     return {"saturation_time_s": float(np.sum(at_bound) * ts),

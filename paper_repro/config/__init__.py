@@ -40,7 +40,7 @@ from paper_repro.config.world import (
     SimulationParams,
     TrackerParams,
 )
-from paper_repro.config_history import moved_settings, with_added, without_added
+from paper_repro.config_history import keyed, moved_settings, with_added
 
 __all__ = ["BarrierParams", "COLD_STARTS", "Config", "DistanceParams", "ESTIMATES", "GUIDES",
            "GuideParams", "NMPCParams", "PLANT_SIMULATORS", "PlantParams", "PREDICTIONS",
@@ -93,16 +93,17 @@ class Config:
                                  f"region velocity to act on, got {name} {value!r}")
         # Cross-field: the artificial equilibrium (hover at rest, eq. 7) must exist in
         # λ(𝒳 × 𝒰), or the OCP is infeasible at every step.
-        xl, xu, ul, uu = self.nmpc.relaxed_bounds()
-        hover = self.quadrotor.hover_thrust
-        if not np.all((ul <= hover) & (hover <= uu)):
-            raise ValueError(f"nmpc.input_lower/input_upper must hold the hover thrust "
-                             f"m·g/4 = {hover:.4g} N inside λ(𝒰) = [{ul.min():.4g}, "
+        q = self.quadrotor
+        xl, xu, ul, uu = q.relaxed_bounds(self.nmpc.lam)
+        if not np.all((ul <= q.hover_thrust) & (q.hover_thrust <= uu)):
+            raise ValueError(f"quadrotor.input_lower/input_upper must hold the hover thrust "
+                             f"m·g/4 = {q.hover_thrust:.4g} N inside λ(𝒰) = [{ul.min():.4g}, "
                              f"{uu.max():.4g}] N per rotor, got input bounds "
-                             f"{self.nmpc.input_lower!r} to {self.nmpc.input_upper!r}")
+                             f"{q.input_lower!r} to {q.input_upper!r}")
         for i in (3, 4, *range(6, 12)):  # roll, pitch, velocities and rates are 0 at rest
             if not xl[i] <= 0.0 <= xu[i]:
-                raise ValueError(f"nmpc.state_lower[{i}] < 0 < nmpc.state_upper[{i}] is needed "
+                raise ValueError(f"quadrotor.state_lower[{i}] < 0 < quadrotor.state_upper[{i}] "
+                                 "is needed "
                                  f"for hover (at rest this state is 0), got λ-relaxed bounds "
                                  f"[{xl[i]:.4g}, {xu[i]:.4g}]")
 
@@ -111,9 +112,10 @@ class Config:
 
     def key_dict(self) -> dict:
         """What a run's cache key hashes: :meth:`to_dict` without the settings of
-        :data:`~paper_repro.config_history.ADDED` that hold the value they were added with."""
-        data = self.to_dict()
-        return without_added(data, Config().to_dict())
+        :data:`~paper_repro.config_history.ADDED` that hold the value they were added with,
+        and the settings of :data:`~paper_repro.config_history.KEYED_IN_FORMER_PLACE` in
+        their former place (:func:`~paper_repro.config_history.keyed`)."""
+        return keyed(self.to_dict(), Config().to_dict())
 
     @classmethod
     def from_dict(cls, data: dict) -> Config:

@@ -18,6 +18,10 @@ from paper_repro.validation import (
 )
 
 
+def _diag(*values: float) -> tuple[float, ...]:
+    return tuple(float(v) for v in values)
+
+
 @dataclass(frozen=True)
 class QuadrotorParams:
     """UFMG/ProVANT quadrotor of Table I (SI units).
@@ -31,6 +35,10 @@ class QuadrotorParams:
     drag_coefficient : N·m·s², *paper* k_τ = 1.7e-7; the yaw torque of a rotor is
         (k_τ / b)·f_i.
     inertia : (Ixx, Iyy, Izz) in kg·m², *paper* (0.0363, 0.0363, 0.0615).
+    state_lower, state_upper : (12,) the box 𝒳 of eq. (7), *paper*: position (m), Euler
+        angles (rad), velocities (m/s), Euler-angle rates (rad/s). The position's box is the
+        workspace.
+    input_lower, input_upper : (4,) the box 𝒰 of the rotor thrusts, N, *paper* 0 ≤ f_i ≤ 12.
     """
 
     mass: float = 2.24
@@ -39,6 +47,16 @@ class QuadrotorParams:
     thrust_coefficient: float = 9.5e-6
     drag_coefficient: float = 1.7e-7
     inertia: tuple[float, float, float] = (0.0363, 0.0363, 0.0615)
+    state_lower: tuple[float, ...] = _diag(
+        -25, -25, 0, -math.pi / 6, -math.pi / 6, -math.pi, -5, -5, -3,
+        -math.pi / 2, -math.pi / 2, -math.pi / 2,
+    )
+    state_upper: tuple[float, ...] = _diag(
+        25, 25, 25, math.pi / 6, math.pi / 6, math.pi, 5, 5, 3,
+        math.pi / 2, math.pi / 2, math.pi / 2,
+    )
+    input_lower: tuple[float, ...] = _diag(0, 0, 0, 0)
+    input_upper: tuple[float, ...] = _diag(12, 12, 12, 12)
 
     def __post_init__(self):
         for name in ("mass", "arm", "gravity", "thrust_coefficient", "drag_coefficient"):
@@ -47,6 +65,19 @@ class QuadrotorParams:
                 is_number(i) and math.isfinite(i) and i > 0 for i in self.inertia)):
             raise ValueError(
                 f"inertia must be three finite values > 0 (kg·m²), got {self.inertia!r}")
+        for name, n in (("state_lower", 12), ("state_upper", 12), ("input_lower", 4),
+                        ("input_upper", 4)):
+            require_vector(name, getattr(self, name), n)
+        # 𝒳 and 𝒰 must be boxes with interior (lower < upper, per index), or the first QP
+        # is infeasible and HPIPM fails without saying why.
+        require_ordered("state_lower", self.state_lower, "state_upper", self.state_upper)
+        require_ordered("input_lower", self.input_lower, "input_upper", self.input_upper)
+
+    def relaxed_bounds(self, lam: float) -> tuple[np.ndarray, ...]:
+        """λ(𝒳 × 𝒰) of this box (:func:`relaxed_box`), ``lam`` the λ of ``nmpc.lam``: x lower,
+        x upper, u lower, u upper."""
+        return (*relaxed_box(self.state_lower, self.state_upper, lam),
+                *relaxed_box(self.input_lower, self.input_upper, lam))
 
     @property
     def yaw_torque_ratio(self) -> float:
@@ -183,10 +214,6 @@ class BarrierParams:
         return 1.0 - self.delta if self.form == "printed" else self.delta
 
 
-def _diag(*values: float) -> tuple[float, ...]:
-    return tuple(float(v) for v in values)
-
-
 PREDICTIONS = ("static", "oracle", "kalman")
 """How the problem predicts the regions it sees (``NMPCParams.prediction``)."""
 
@@ -207,10 +234,6 @@ class NMPCParams:
     q, r, t : diagonals of Q (12), R (4), T (3), *paper*. Another vehicle
         (:class:`~paper_repro.vehicles.base.VehicleModel`) needs n_x, n_u and p entries; the
         :class:`~paper_repro.problem.ocp.OCP` checks them against its model.
-    state_lower, state_upper : (12,) bounds of the quadrotor's 𝒳, *paper*; position, Euler
-        angles (rad), velocities (m/s), Euler-angle rates (rad/s). Another vehicle carries its
-        own bounds.
-    input_lower, input_upper : (4,) bounds of the quadrotor's 𝒰 in N, *paper* 0 ≤ f_i ≤ 12.
     lam : λ ∈ (0, 1), *chosen* 0.99. The artificial equilibrium lies in λ(𝒳 × 𝒰),
         i.e. 25 cm inside the 25 m workspace walls; the relaxation only needs to keep
         (x_a, u_a) off the boundary (Limon et al. 2018), and the paper's targets sit at
@@ -233,16 +256,6 @@ class NMPCParams:
     q: tuple[float, ...] = _diag(1, 1, 1, 0.1, 0.1, 1, 1, 1, 1, 10, 10, 1)
     r: tuple[float, ...] = _diag(3, 3, 3, 3)
     t: tuple[float, ...] = _diag(1000, 1000, 1000)
-    state_lower: tuple[float, ...] = _diag(
-        -25, -25, 0, -math.pi / 6, -math.pi / 6, -math.pi, -5, -5, -3,
-        -math.pi / 2, -math.pi / 2, -math.pi / 2,
-    )
-    state_upper: tuple[float, ...] = _diag(
-        25, 25, 25, math.pi / 6, math.pi / 6, math.pi, 5, 5, 3,
-        math.pi / 2, math.pi / 2, math.pi / 2,
-    )
-    input_lower: tuple[float, ...] = _diag(0, 0, 0, 0)
-    input_upper: tuple[float, ...] = _diag(12, 12, 12, 12)
     lam: float = 0.99
     prediction: str = "static"
     region_slots: int = 2
@@ -253,15 +266,8 @@ class NMPCParams:
         require_positive("ts", self.ts)
         if self.prediction_ts is not None:
             require_positive("prediction_ts", self.prediction_ts)
-        for name, n in (("state_lower", 12), ("state_upper", 12), ("input_lower", 4),
-                        ("input_upper", 4)):
-            require_vector(name, getattr(self, name), n)
         for name in ("q", "r", "t"):  # their length is the model's (checked by the OCP)
             require_vector(name, getattr(self, name), None)
-        # Cross-field: 𝒳 and 𝒰 must be boxes with interior (lower < upper, per index), or
-        # the first QP is infeasible and HPIPM fails without saying why.
-        require_ordered("state_lower", self.state_lower, "state_upper", self.state_upper)
-        require_ordered("input_lower", self.input_lower, "input_upper", self.input_upper)
         if any(x < 0 for x in self.q):
             raise ValueError(f"q must be >= 0 (Q ⪰ 0), got {self.q!r}")
         for name in ("r", "t"):
@@ -284,12 +290,6 @@ class NMPCParams:
         an array of them. A region seen moving at v is predicted v·τ_j from where it was seen
         (y_{N+1} = y_a is stage N + 1). Every solver and figure reads it from here."""
         return j * self.prediction_step
-
-    def relaxed_bounds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """λ(𝒳 × 𝒰) of the quadrotor's box (see :func:`relaxed_box`): x lower, x upper, u
-        lower, u upper."""
-        return (*relaxed_box(self.state_lower, self.state_upper, self.lam),
-                *relaxed_box(self.input_lower, self.input_upper, self.lam))
 
 
 def relaxed_box(lower, upper, lam: float) -> tuple[np.ndarray, np.ndarray]:

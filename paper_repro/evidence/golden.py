@@ -139,8 +139,9 @@ class GoldenFlight:
                     max_steps=self.steps, **({} if self.approach_time is None
                                              else {"approach_time": self.approach_time})),
                 nmpc=dataclasses.replace(cfg.nmpc, prediction=self.prediction,
-                                         prediction_ts=self.prediction_ts,
-                                         state_lower=self._state_lower(cfg.nmpc)),
+                                         prediction_ts=self.prediction_ts),
+                quadrotor=dataclasses.replace(cfg.quadrotor,
+                                              state_lower=self._state_lower(cfg.quadrotor)),
                 barrier=dataclasses.replace(cfg.barrier, **dict(self.barrier)))
         if self.layer in ("map", "guide"):
             from paper_repro.config import GuideParams
@@ -156,9 +157,9 @@ class GoldenFlight:
             qp_solver=self.qp_solver))
 
 
-    def _state_lower(self, nmpc) -> tuple:
+    def _state_lower(self, quadrotor) -> tuple:
         """𝒳's lower bounds, with the altitude's at ``floor`` when one is given."""
-        lower = list(nmpc.state_lower)
+        lower = list(quadrotor.state_lower)
         if self.floor is not None:
             lower[2] = self.floor
         return tuple(lower)

@@ -101,8 +101,8 @@ def plot_thrusts(result, axes=None, max_points: int = MAX_POINTS, t_range=None,
     fig, axes = axes_column(axes, 4, figsize=(7, 6.5))
     k = steps_in(result, t_range)
     t, u, u_a = result.t[k], result.u[k], result.u_a[k]
-    lower, upper = (np.asarray(result.config.nmpc.input_lower, float),
-                    np.asarray(result.config.nmpc.input_upper, float))
+    lower, upper = (np.asarray(result.config.quadrotor.input_lower, float),
+                    np.asarray(result.config.quadrotor.input_upper, float))
     for i, ax in enumerate(axes):
         idx = envelope_indices(u[:, i], max_points)
         ax.plot(t[idx], u[idx, i], color="tab:blue", lw=0.8, label=f"$f_{i + 1}$")
@@ -290,7 +290,7 @@ def lidar_instants(result, scene, n: int = 4) -> list[int]:
     comes within range of, then evenly spaced steps at least r_s apart, ``n`` at most. Each k
     indexes the per-step arrays (``result.t[k]``, ``result.visible_points[k]``): the state
     after the last step, which has no time of its own, is never chosen."""
-    pos = result.x[:len(result.t), :3]
+    pos = result.positions[:len(result.t)]
     r_s = result.config.sensor.range
     chosen = []
     for cloud in scene.clouds:

@@ -162,7 +162,7 @@ def _crossing_limits(result, steps, plane: str, pad: float):
     """(lo, hi) per axis of the plane: the UAV's positions at ``steps`` ± ``pad`` (m), within
     the workspace."""
     i0, i1 = _plane_index(plane)
-    p = result.x[np.asarray(steps, int), :3][:, [i0, i1]]
+    p = result.positions[np.asarray(steps, int)][:, [i0, i1]]
     lo = np.maximum(p.min(axis=0) - pad, WORKSPACE_LOWER[[i0, i1]])
     hi = np.minimum(p.max(axis=0) + pad, WORKSPACE_UPPER[[i0, i1]])
     return lo, hi

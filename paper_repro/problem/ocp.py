@@ -53,7 +53,7 @@ class OCP:
         options (``solver``) or the mission (``simulation``). The weights ``nmpc.q``,
         ``nmpc.r``, ``nmpc.t`` must have n_x, n_u and p entries.
     model : the vehicle (:class:`~paper_repro.vehicles.base.VehicleModel`); the quadrotor of
-        ``config`` by default, whose 𝒳 × 𝒰 are ``config.nmpc``'s bounds.
+        ``config`` by default, whose 𝒳 × 𝒰 are ``config.quadrotor``'s boxes.
 
     Attributes
     ----------

@@ -4,11 +4,11 @@ Two kinds of problem, kept apart:
 
 * **Inconsistent** (:func:`check_setup` raises ``ValueError``): the mission cannot be flown as
   posed. The start lies outside the admissible state set 𝒳 (the UAV starts at rest, so its
-  position must lie in the position bounds ``nmpc.state_lower[:3]``, ``nmpc.state_upper[:3]``;
-  outside them every QP is infeasible), or a target lies outside the workspace (the same
-  position bounds). A target outside the workspace is an error, not clamped: a clamped target
-  is a different mission, and one the UAV may still never reach within the tolerance, so the
-  run would silently spend ``max_steps`` and report a target as missed.
+  position must lie in the position bounds ``quadrotor.state_lower[:3]``,
+  ``quadrotor.state_upper[:3]``; outside them every QP is infeasible), or a target lies outside
+  the workspace (the same position bounds). A target outside the workspace is an error, not
+  clamped: a clamped target is a different mission, and one the UAV may still never reach within
+  the tolerance, so the run would silently spend ``max_steps`` and report a target as missed.
 * **Hazardous** (:func:`setup_hazards` reports, nothing raises): the mission can be flown but
   starts or ends somewhere unsafe: inside the unsafe set of the barrier (D < d_min for the
   configured metric, eq. 17, computed as the controller would see it: per region, from the
@@ -48,7 +48,7 @@ def check_setup(config: Config, scene: Scene, model: VehicleModel | None = None)
     Parameters
     ----------
     config : the run's :class:`~paper_repro.config.Config`; the admissible positions are
-        ``[nmpc.state_lower[:3], nmpc.state_upper[:3]]``, m (closed box).
+        ``[quadrotor.state_lower[:3], quadrotor.state_upper[:3]]``, m (closed box).
     scene : the :class:`~paper_repro.world.scene.Scene` to fly.
     model : the vehicle flown (default: the quadrotor): the admissible positions are its box
         𝒳 at its ``position`` states.
@@ -146,11 +146,11 @@ def _require_inside(name: str, point: np.ndarray, lower: np.ndarray, upper: np.n
 
 
 def _position_box(config: Config, model: VehicleModel | None):
-    """(lower, upper, name) of the admissible positions: the quadrotor's ``nmpc`` box at
+    """(lower, upper, name) of the admissible positions: the quadrotor's box 𝒳 at
     (x, y, z), or a model's box 𝒳 at its ``position`` states."""
     if model is None or model.name == "quadrotor":
-        return (np.asarray(config.nmpc.state_lower[:3], float),
-                np.asarray(config.nmpc.state_upper[:3], float), "nmpc.state")
+        return (np.asarray(config.quadrotor.state_lower[:3], float),
+                np.asarray(config.quadrotor.state_upper[:3], float), "quadrotor.state")
     index = list(model.position)
     return (np.asarray(model.state_lower, float)[index],
             np.asarray(model.state_upper, float)[index], f"{model.name}.state")

@@ -348,14 +348,16 @@ def config_changes(base: dict, config: Config) -> dict:
     so that :func:`~paper_repro.evidence.golden.study_run_config` gives ``config`` back. First
     the settings that differ from the base's; then those that a part the changes bring in
     would read back otherwise (a setting of ``config_history.ADDED`` reads back at its
-    neutral value, not at its default)."""
+    neutral value, not at its default). Settings are named where the base names them
+    (:func:`~paper_repro.config_history.as_keyed`)."""
+    from paper_repro.config_history import as_keyed
     from paper_repro.evidence.golden import study_run_config
 
-    full = config.to_dict()
-    start = study_run_config(base, {}).to_dict()
+    full = as_keyed(config.to_dict())
+    start = as_keyed(study_run_config(base, {}).to_dict())
     changes = {f"{part}.{name}": value for part, fields in full.items()
                for name, value in fields.items() if start[part][name] != value}
-    back = study_run_config(base, changes).to_dict()
+    back = as_keyed(study_run_config(base, changes).to_dict())
     changes.update({f"{part}.{name}": value for part, fields in full.items()
                     for name, value in fields.items() if back[part][name] != value})
     return changes

@@ -138,9 +138,9 @@ def rekey(results_dir=None) -> dict:
             candidate = json.loads(json.dumps(saved))
             candidate["simulation"]["max_steps"] = spec_steps
             # keyed as saved (code before ADDED), or as Config.key_dict keys it (today's)
-            for keyed in (candidate, _without_added(candidate)):
-                if json_hash({"config": keyed, "max_steps": int(steps), "scene": scene,
-                          "golden": golden})[:HASH_LENGTH] == key:
+            for form in (candidate, _as_keyed(candidate)):
+                if json_hash({"config": form, "max_steps": int(steps), "scene": scene,
+                              "golden": golden})[:HASH_LENGTH] == key:
                     written = candidate
         if written is None:
             counts["unproven"] += 1
@@ -163,13 +163,12 @@ def rekey(results_dir=None) -> dict:
     return counts
 
 
-def _without_added(config: dict) -> dict:
-    """A stored configuration as :meth:`Config.key_dict` leaves it
-    (:func:`~paper_repro.config.without_added`)."""
-    from paper_repro.config_history import without_added
+def _as_keyed(config: dict) -> dict:
+    """A stored configuration as :meth:`Config.key_dict` hashes it
+    (:func:`~paper_repro.config_history.keyed`)."""
+    from paper_repro.config_history import keyed
 
-    return without_added(json.loads(json.dumps(config)), Config().to_dict())
-
+    return keyed(json.loads(json.dumps(config)), Config().to_dict())
 
 
 def is_cached(directory) -> bool:

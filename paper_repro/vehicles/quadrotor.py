@@ -77,21 +77,21 @@ def rk4_discretisation(ts: float, params: QuadrotorParams | None = None,
 def quadrotor_model(config: Config | None = None) -> VehicleModel:
     """The quadrotor as the NMPC sees it (:class:`~paper_repro.vehicles.base.VehicleModel`).
 
-    Output y = position (3,). 𝒳 and 𝒰 are ``config.nmpc``'s bounds. Its equilibria are
+    Output y = position (3,). 𝒳 and 𝒰 are the boxes of ``config.quadrotor``. Its equilibria are
     parametrised exactly by a = (position, yaw) with hover thrust (see :func:`equilibrium`).
     """
     cfg = config or Config()
-    p = cfg.nmpc
+    p = cfg.quadrotor
     x = ca.SX.sym("x", N_STATES)
     a = ca.SX.sym("a", 4)
-    hover = cfg.quadrotor.hover_thrust
+    hover = p.hover_thrust
     position_and_yaw = np.array([0, 1, 2, 5])  # an index array: of_state runs every step
     equilibria = Equilibria(
         state=ca.Function("x_a", [a], [ca.vertcat(a[:3], 0, 0, a[3], ca.SX.zeros(6))]),
         input=ca.Function("u_a", [a], [ca.DM.ones(N_INPUTS) * hover]),
         of_state=lambda xs: np.asarray(xs, float)[position_and_yaw])
     return VehicleModel(
-        "quadrotor", symbolic_dynamics(cfg.quadrotor), ca.Function("h", [x], [x[:3]]),
+        "quadrotor", symbolic_dynamics(p), ca.Function("h", [x], [x[:3]]),
         p.state_lower, p.state_upper, p.input_lower, p.input_upper, equilibria,
         position=(0, 1, 2), velocity=(6, 7, 8), state_names=STATE_NAMES,
         input_names=tuple(f"f{i + 1}" for i in range(N_INPUTS)))
