@@ -115,6 +115,19 @@ def test_a_module_imports_only_its_layer_and_the_layers_below(module):
     assert "paper_repro" not in INSIDE[module], f"{module} imports the top-level package"
 
 
+SENSING = {"paper_repro.world.lidar", "paper_repro.sim", "paper_repro.sim.loop",
+           "paper_repro.sim.perception", "paper_repro.world.local_map"}
+"""What scans or flies: a figure draws what a result stored, and runs neither."""
+
+
+def test_no_figure_scans_or_flies_again():
+    """``plots`` draws the scans the controller was handed (``SimulationResult.scan``): none
+    of its modules imports the LiDAR, the map or the closed loop."""
+    for module, deps in INSIDE.items():
+        if module.startswith("paper_repro.plots"):
+            assert not deps & SENSING, f"{module} imports {sorted(deps & SENSING)}"
+
+
 def test_the_cycle_finder_finds_a_cycle():
     """The check above can fail: a two-module loop is found, and so is a longer one."""
     assert _find_cycle({"a": {"b"}, "b": {"a"}}) == ["a", "b", "a"]

@@ -433,6 +433,33 @@ def test_clearance_is_measured_to_the_true_positions(approach_runs):
 
 
 @pytest.mark.parametrize("moving", [True, False])
+def test_a_result_holds_every_scan_the_controller_was_handed(moving, tmp_path):
+    """``SimulationResult.scan(k)`` is, bit for bit, what the controller was given at step k,
+    and so after a save and a load. Seen from a hovering UAV, a box that comes at it gives a
+    new scan at almost every step; a box at rest gives one scan, stored once."""
+    scene = _approaching_scene()
+    start = (0.0, 0.0, 5.0) if moving else (3.4, 0.0, 5.0)  # the box at rest: 1.6 m away
+    scene = dataclasses.replace(scene, start=start, motions=scene.motions if moving else None)
+    config = Config()
+    ctl = HoverController(config)
+    result = simulate(config, ctl, max_steps=300, scene=scene, progress=False)
+    again = SimulationResult.load(result.save(tmp_path / "run"))
+    assert len(ctl.calls) == result.steps == 300
+    for k, call in enumerate(ctl.calls):
+        for res in (result, again):
+            got = res.scan(k)
+            assert len(got) == len(call["visible"]) == 1
+            assert np.array_equal(got[0], call["visible"][0])
+    distinct, in_view = len(result.scan_sizes), np.count_nonzero(result.visible_points)
+    assert in_view > 50
+    assert distinct == (1 + in_view if moving else 1)  # moving: the empty scan, then each
+    with pytest.raises(ValueError, match="k must be a step 0..299"):
+        result.scan(300)
+    with pytest.raises(ValueError, match="saved before the scans were stored"):
+        dataclasses.replace(result, scan_points=None, scan_sizes=None, scan_index=None).scan(0)
+
+
+@pytest.mark.parametrize("moving", [True, False])
 def test_the_clearance_of_a_flight_is_the_brute_force_distance_at_each_step(moving):
     """``TrueClearance.along`` (the loop measures every step at once, after the flight): the
     distance to the clouds where they are at each time, NaN at a position that is not

@@ -49,7 +49,9 @@ from paper_repro.plots.sensing import (
     plot_sensing_window,
     scan_change_times,
 )
+from paper_repro.sim.perception import ScanLog
 from paper_repro.sim.result import SimulationResult
+from paper_repro.world.lidar import Lidar
 
 
 @pytest.fixture(scope="module")
@@ -73,6 +75,9 @@ def result(scene):
     u[3000:3100, 0] += 0.3 * (-1.0) ** np.arange(100)       # a burst of chattering
     targets = np.array([[-12.0, 18.0, 11.0], [-21.0, 18.0, 0.0]])
     index = (k[:-1] >= 4000).astype(int)
+    lidar, scans = Lidar(scene.clouds, Config().sensor.range), ScanLog(len(scene.clouds), 3)
+    for position in x[:-1, :3]:  # what a perfect LiDAR hands the controller on this path
+        scans.add(lidar.scan(position))
     return SimulationResult(
         t=k[:-1] * 0.01, x=x, u=u, x_a=x[:-1], u_a=np.full((steps, 4), 5.49),
         solve_time=np.full(steps, 0.08), iterations=np.full(steps, 9),
@@ -80,7 +85,7 @@ def result(scene):
         clearance=1.0 + np.abs(k[:-1] - 3000) / 1000, target_index=index,
         visible_points=np.zeros(steps, int), dropped_points=np.zeros(steps, int),
         targets=targets, reached=np.array([4000, -1]), outcome="step_limit", scene=scene,
-        config=Config())
+        config=Config(), **scans.arrays())
 
 
 def test_save_figure_is_byte_stable(tmp_path, result, scene):

@@ -9,14 +9,14 @@ import numpy as np
 
 from paper_repro.plots.common import CLOUD_COLOR, MAX_POINTS, draw_sphere, stride_indices
 from paper_repro.plots.flight import mark_start_and_targets, workspace_limits
-from paper_repro.world.lidar import Lidar
 
 # --- animation ------------------------------------------------------------------------------
 
 def animate_flight(result, scene, path, frames: int = 100, fps: int = 12, dpi: int = 72,
                    close_up: float = 5.0):
     """GIF of the flight: whole workspace (left) and a close-up around the UAV (right), with
-    the LiDAR sphere and the points it sees highlighted.
+    the LiDAR sphere and the points the controller was handed highlighted
+    (:meth:`~paper_repro.sim.result.SimulationResult.scan`).
 
     Parameters
     ----------
@@ -30,7 +30,6 @@ def animate_flight(result, scene, path, frames: int = 100, fps: int = 12, dpi: i
         raise ValueError(f"frames must be an integer >= 1, got {frames!r}")
     pos = result.positions
     r_s = result.config.sensor.range
-    lidar = Lidar(scene.clouds, r_s)
     steps = np.unique(np.linspace(0, len(pos) - 1, frames).round().astype(int))
     fig = plt.figure(figsize=(9, 4.5), dpi=dpi)
     axes = [fig.add_subplot(1, 2, i + 1, projection="3d") for i in range(2)]
@@ -58,7 +57,8 @@ def animate_flight(result, scene, path, frames: int = 100, fps: int = 12, dpi: i
             line.set_data_3d(*pos[trail].T)
             artists["dynamic"].append(draw_sphere(ax, p, r_s, alpha=0.15))
             artists["dynamic"].append(ax.scatter(*p, s=18, color="black", depthshade=False))
-        seen = [v for v in lidar.scan(p) if len(v)]
+        k_log = min(k, len(result.t) - 1)  # the state after the last step has no scan
+        seen = [v for v in result.scan(k_log) if len(v)]
         if seen:
             pts = np.concatenate(seen)
             for ax in axes:
@@ -70,7 +70,6 @@ def animate_flight(result, scene, path, frames: int = 100, fps: int = 12, dpi: i
             set_lim(p[i] - close_up, p[i] + close_up)
         ax.set_box_aspect((1, 1, 1))
         n_seen = sum(len(v) for v in seen)
-        k_log = min(k, len(result.t) - 1)
         ax.set_title(f"t = {k * result.config.nmpc.ts:6.1f} s, {n_seen} points in view, "
                      f"clearance {result.clearance[k_log]:.2f} m", fontsize="small")
         return []

@@ -19,7 +19,6 @@ from paper_repro.plots.common import (
 )
 from paper_repro.plots.flight import steps_in
 from paper_repro.plots.studies import METRIC_COLOURS
-from paper_repro.world.lidar import Lidar
 from paper_repro.world.scene import WORKSPACE_LOWER, WORKSPACE_UPPER
 
 # --- moving obstacles (nmpc.prediction: static, oracle, kalman) ------------------------
@@ -115,22 +114,22 @@ def _draw_crossing(ax, result, k: int, plane: str, velocities=None, stages=(),
     """The state of a moving-region run at step k in one plane; returns the artists drawn.
 
     The path up to k (black), the UAV (black dot) and the section of its LiDAR sphere (blue
-    circle), each region's cloud where it is at t_k (red, faint), the points in view (orange)
-    and, with ``velocities`` ((n_regions, 3) m/s at step k), the scanned points moved by
-    v_i·τ_j for each stage j of ``stages``, τ_j = j·h: where the controller predicted them
-    (blue rings, fainter with j)."""
+    circle), each region's cloud where it is at t_k (red, faint), the points the controller was
+    handed at step k (orange, :meth:`~paper_repro.sim.result.SimulationResult.scan`) and, with
+    ``velocities`` ((n_regions, 3) m/s at step k), the scanned points moved by v_i·τ_j for each
+    stage j of ``stages``, τ_j = j·h: where the controller predicted them (blue rings, fainter
+    with j)."""
     i0, i1 = _plane_index(plane)
     cfg = result.config
     r_s = cfg.sensor.range
-    t = float(result.t[min(k, len(result.t) - 1)])
+    k_log = min(k, len(result.t) - 1)  # the state after the last step has no scan
+    t = float(result.t[k_log])
     pos = result.positions
     artists = []
-    clouds = result.scene.clouds_at(t)
-    for c in clouds:
+    for c in result.scene.clouds_at(t):
         artists.append(ax.scatter(c[:, i0], c[:, i1], s=6, color=CLOUD_COLOR, alpha=0.35, lw=0,
                                   zorder=2))
-    lidar = Lidar(clouds, r_s)  # the clouds where they are at t: a static scan of them
-    seen = lidar.scan(pos[k])
+    seen = result.scan(k_log)
     if any(len(v) for v in seen):
         pts = np.concatenate([v for v in seen if len(v)])
         artists.append(ax.scatter(pts[:, i0], pts[:, i1], s=12, color="orange",

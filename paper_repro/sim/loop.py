@@ -220,7 +220,7 @@ def _measurement(plant, faults: Faults | None) -> Callable[[int, np.ndarray], np
 
 def _result(f: _Flight, cfg: Config, x, y) -> SimulationResult:
     """The flight's result: the log, the true clearance of every step, the solver counts."""
-    arrays = f.log.arrays(x, y)
+    arrays = {**f.log.arrays(x, y), **f.perception.scans.arrays()}
     # The true clearance of every step at once, after the flight: it is only logged, and one
     # batched KD-tree query costs a fraction of one query per step.
     arrays["clearance"] = TrueClearance(f.scene).along(f.log.y[:f.log.n], arrays["t"])

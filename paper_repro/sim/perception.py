@@ -45,6 +45,42 @@ class Percept(NamedTuple):
     dropped: int
 
 
+class ScanLog:
+    """Every scan the controller was handed, in a compact form: each distinct scan once, and
+    for each step the index of its scan. A vehicle among static regions mostly sees the same
+    points from one step to the next, so most steps add one integer.
+
+    :meth:`arrays` gives what a :class:`~paper_repro.sim.result.SimulationResult` stores:
+    ``scan_points`` (M, p) m, the points of the distinct scans one after the other, region by
+    region; ``scan_sizes`` (S, n_regions) the number of points of each region in each distinct
+    scan; ``scan_index`` (K,) the distinct scan of each step.
+    """
+
+    def __init__(self, regions: int, dim: int):
+        self.regions, self.dim = regions, dim
+        self._points: list[np.ndarray] = []
+        self._sizes: list[list[int]] = []
+        self._index: list[int] = []
+        self._last: tuple | None = None
+
+    def add(self, visible: Sequence[np.ndarray]) -> None:
+        """Log the scan of the next step: one (k_i, p) array per region."""
+        key = tuple(np.ascontiguousarray(v, float).tobytes() for v in visible)
+        if key != self._last:
+            self._last = key
+            self._sizes.append([len(v) for v in visible])
+            self._points.extend(np.asarray(v, float).reshape(-1, self.dim) for v in visible)
+        self._index.append(len(self._sizes) - 1)
+
+    def arrays(self) -> dict:
+        """``scan_points``, ``scan_sizes`` and ``scan_index`` (class docstring)."""
+        points = (np.concatenate(self._points) if self._points
+                  else np.empty((0, self.dim)))
+        sizes = np.array(self._sizes, dtype=np.int32).reshape(len(self._sizes), self.regions)
+        return {"scan_points": points, "scan_sizes": sizes,
+                "scan_index": np.asarray(self._index, dtype=np.int32)}
+
+
 class Perception:
     """The sensor, the predictor and the local map of one flight (module docstring).
 
@@ -58,6 +94,8 @@ class Perception:
     Attributes
     ----------
     local_map : the :class:`~paper_repro.world.local_map.VoxelMap`, or ``None`` (the paper).
+    scans : the :class:`ScanLog` of every scan handed to the controller, one per call of
+        :meth:`sense`.
     """
 
     def __init__(self, config: Config, scene: Scene, scan_fault: Callable | None = None):
@@ -67,6 +105,7 @@ class Perception:
         self.scan_fault = scan_fault
         self.predict = _predictor(config, scene)
         self.read_map, self.local_map = _map_reader(config, scene)
+        self.scans = ScanLog(len(scene.clouds), scene.dim)
 
     def sense(self, k: int, t: float, y: np.ndarray) -> Percept:
         """What the controller is given at step ``k``, time ``t`` (s), with the vehicle's
@@ -78,6 +117,7 @@ class Perception:
         velocities = self.predict(visible, t)  # the tracker reads the raw scan
         if self.read_map is not None:
             visible = self.read_map(visible, y, t, velocities)
+        self.scans.add(visible)
         return Percept(visible, velocities, dropped)
 
 

@@ -21,7 +21,8 @@ from paper_repro.world.scene import Scene
 RESULT_ARRAYS = ("t", "x", "u", "x_a", "u_a", "solve_time", "iterations", "success", "clearance",
            "target_index", "visible_points", "dropped_points")
 
-OPTIONAL_ARRAYS = ("region_velocities", "set_points", "y")
+OPTIONAL_ARRAYS = ("region_velocities", "set_points", "y", "scan_points", "scan_sizes",
+                   "scan_index")
 """Arrays a result holds only where the run has them (see :class:`SimulationResult`)."""
 
 
@@ -60,6 +61,9 @@ class SimulationResult:
     y : (K+1, p) m, the output y = h(x) of every state of ``x``: the point that keeps clear
         and tracks the targets (the quadrotor's position). ``None`` in a result saved before
         it was stored; :attr:`positions` then reads the quadrotor's x[:, :3].
+    scan_points, scan_sizes, scan_index : the scans the controller was handed, each distinct
+        scan once (:class:`~paper_repro.sim.perception.ScanLog`); :meth:`scan` reads the one
+        of a step. ``None`` in a result saved before they were stored.
     targets : (k, 3) m.   reached : (k,) step at which each target was reached (−1 if not).
     outcome : one of :data:`OUTCOMES`.
     scene : the :class:`~paper_repro.world.scene.Scene` flown, clouds and motions included (saved
@@ -92,11 +96,32 @@ class SimulationResult:
     region_velocities: np.ndarray | None = None
     set_points: np.ndarray | None = None
     y: np.ndarray | None = None
+    scan_points: np.ndarray | None = None
+    scan_sizes: np.ndarray | None = None
+    scan_index: np.ndarray | None = None
+    _scan_starts: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     @property
     def positions(self) -> np.ndarray:
         """(K+1, p) m: the output y of every state (see ``y``)."""
         return self.y if self.y is not None else self.x[:, :3]
+
+    def scan(self, k: int) -> list[np.ndarray]:
+        """The points the controller was handed at step ``k`` (0 ≤ k < K): one (k_i, p) array
+        per region, m (views into the stored scans: read them, do not write them). Raises
+        ``ValueError`` for a result saved before the scans were stored: fly it again."""
+        if self.scan_index is None:
+            raise ValueError(f"this result of {self.scene.name!r} was saved before the scans "
+                             "were stored; fly the run again to draw what its controller saw")
+        if not (isinstance(k, (int, np.integer)) and 0 <= k < len(self.scan_index)):
+            raise ValueError(f"k must be a step 0..{len(self.scan_index) - 1}, got {k!r}")
+        if self._scan_starts is None:  # where each distinct scan starts in scan_points
+            self._scan_starts = np.concatenate([[0], np.cumsum(self.scan_sizes.sum(axis=1))])
+        s = int(self.scan_index[k])
+        sizes, start = self.scan_sizes[s], int(self._scan_starts[s])
+        if sizes.size == 0:
+            return []
+        return np.split(self.scan_points[start:start + int(sizes.sum())], np.cumsum(sizes)[:-1])
 
     @property
     def steps(self) -> int:
