@@ -19,6 +19,7 @@ from paper_repro.plots.common import (
 )
 from paper_repro.plots.flight import steps_in
 from paper_repro.plots.studies import METRIC_COLOURS
+from paper_repro.problem.scan import region_shift
 from paper_repro.world.scene import WORKSPACE_LOWER, WORKSPACE_UPPER
 
 # --- moving obstacles (nmpc.prediction: static, oracle, kalman) ------------------------
@@ -138,8 +139,9 @@ def _draw_crossing(ax, result, k: int, plane: str, velocities=None, stages=(),
         stages = sorted(stages)
         alphas = np.linspace(0.8, 0.3, len(stages))
         for j, alpha in zip(stages, alphas, strict=True):
-            moved = [v + np.asarray(velocities[i], float) * cfg.nmpc.stage_time(j)
-                     for i, v in enumerate(seen) if len(v)]
+            shift = [region_shift(np.asarray(w, float), cfg.nmpc.stage_time(j))
+                     for w in velocities]
+            moved = [v + shift[i] for i, v in enumerate(seen) if len(v)]
             if moved:
                 pts = np.concatenate(moved)
                 artists.append(ax.scatter(pts[:, i0], pts[:, i1], s=16, facecolors="none",

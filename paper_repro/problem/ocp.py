@@ -18,11 +18,11 @@ derivatives, and the layout of the LiDAR scan (:class:`ScanLayout`). As acados k
 ``AcadosOcp`` apart from the solvers that read it, the IPOPT transcription
 (:class:`paper_repro.solvers.ipopt.TrackingNMPC`) and the real-time solver
 (:class:`paper_repro.solvers.rti.RealTimeNMPC`) both build from an ``OCP`` and write no term of
-their
-own. :class:`NMPCSolution` and the :class:`Controller` protocol are what every solver returns
-and offers; :func:`paper_repro.solvers.factory.make_controller` picks one.
+their own. :class:`NMPCSolution` and the :class:`Controller` protocol are what every solver
+returns and offers; :func:`paper_repro.solvers.factory.make_controller` picks one.
 
-Import graph: ``config → vehicle → model → ocp → {nmpc, rti} → controllers``.
+Import graph: ``config → vehicles → problem.{distance, scan, ocp} → solvers.{ipopt, rti} →
+solvers.factory``.
 """
 
 from __future__ import annotations

@@ -29,6 +29,15 @@ _FAR_AWAY = 1e3  # coordinate of the single dummy point of an inactive slot (its
 
 # --- the LiDAR scan as parameters --------------------------------------------------------------
 
+def region_shift(velocity, tau):
+    """c = v·τ, m: how far a region seen moving at ``velocity`` v (p,) m/s is predicted to be
+    from where it was seen, ``tau`` s after the scan (τ_j of ``NMPCParams.stage_time``). Its
+    points are predicted at a_j + c; for the distance, D^{𝒜+c}(y) = D^𝒜(y − c). NumPy or
+    CasADi, as given. Both solvers (through :meth:`ScanLayout.region_barrier`) and the
+    figures of predicted points read it from here."""
+    return velocity * tau
+
+
 @dataclass(frozen=True)
 class ScanLayout:
     """How a LiDAR scan enters the problem: ``slots`` region slots of ``capacity`` points.
@@ -243,7 +252,7 @@ class ScanLayout:
         if (self.sweep_time == 0 and self.moving_d_min == 0 and self.reaction_time == 0
                 and self.equilibrium_lookahead == 0):
             return (params, lambda yy, tau=0.0, at_equilibrium=False:
-                    beta_fn(yy - velocity * tau, pts, *given), active)
+                    beta_fn(yy - region_shift(velocity, tau), pts, *given), active)
         # ‖v‖ of a parameter: never differentiated, so its kink at v = 0 does not matter.
         speed = ca.norm_2(velocity)
         lo, hi = MOVING_SPEEDS
@@ -259,8 +268,8 @@ class ScanLayout:
         def swept(yy, tau, span):
             """β of the region's path from τ to τ + span (the region itself when span = 0)."""
             if span == 0:
-                return beta_fn(yy - velocity * tau, pts, *given)
-            copies = [beta_fn(yy - velocity * (tau + s), pts, *given)
+                return beta_fn(yy - region_shift(velocity, tau), pts, *given)
+            copies = [beta_fn(yy - region_shift(velocity, tau + s), pts, *given)
                       for s in np.linspace(0.0, span, SWEEP_SAMPLES)]
             if self.metric == "euclidean":
                 # the exact distance to the union of the copies (they coincide at rest)
