@@ -455,8 +455,13 @@ def test_a_result_holds_every_scan_the_controller_was_handed(moving, tmp_path):
     assert distinct == (1 + in_view if moving else 1)  # moving: the empty scan, then each
     with pytest.raises(ValueError, match="k must be a step 0..299"):
         result.scan(300)
+    older = dataclasses.replace(result, scan_points=None, scan_sizes=None, scan_index=None)
+    assert again.has("scan") and again.has("y") and not older.has("scan")
+    assert not again.has("region_velocities")  # the static prediction hands none
     with pytest.raises(ValueError, match="saved before the scans were stored"):
-        dataclasses.replace(result, scan_points=None, scan_sizes=None, scan_index=None).scan(0)
+        older.scan(0)
+    with pytest.raises(ValueError, match="name must be 'scan' or one of"):
+        result.has("scans")
 
 
 @pytest.mark.parametrize("moving", [True, False])

@@ -106,11 +106,22 @@ class SimulationResult:
         """(K+1, p) m: the output y of every state (see ``y``)."""
         return self.y if self.y is not None else self.x[:, :3]
 
+    def has(self, name: str) -> bool:
+        """Whether the result holds ``name``: an array of :data:`OPTIONAL_ARRAYS`, or
+        ``"scan"`` (the scans of :meth:`scan`). A run holds ``region_velocities`` only with
+        a prediction of moving regions and ``set_points`` only with a guide; a result saved
+        by an older version may lack ``y`` or the scans."""
+        if name == "scan":
+            return self.scan_index is not None
+        if name not in OPTIONAL_ARRAYS:
+            raise ValueError(f"name must be 'scan' or one of {OPTIONAL_ARRAYS}, got {name!r}")
+        return getattr(self, name) is not None
+
     def scan(self, k: int) -> list[np.ndarray]:
         """The points the controller was handed at step ``k`` (0 ≤ k < K): one (k_i, p) array
         per region, m (views into the stored scans: read them, do not write them). Raises
         ``ValueError`` for a result saved before the scans were stored: fly it again."""
-        if self.scan_index is None:
+        if not self.has("scan"):
             raise ValueError(f"this result of {self.scene.name!r} was saved before the scans "
                              "were stored; fly the run again to draw what its controller saw")
         if not (isinstance(k, (int, np.integer)) and 0 <= k < len(self.scan_index)):

@@ -176,11 +176,8 @@ def is_cached(directory) -> bool:
     see :func:`~paper_repro.sim.result.verify_result`)."""
     from paper_repro.sim.result import DamagedResult, verify_result
 
-    d = Path(directory)
-    if not ((d / "result.npz").is_file() and (d / "config.json").is_file()):
-        return False
     try:
-        verify_result(d)
+        verify_result(Path(directory))
     except DamagedResult:
         return False
     return True
