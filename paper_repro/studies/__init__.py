@@ -88,7 +88,6 @@ __all__ = [
     "default_result_dir",
     "DESCRIPTION",
     "ensure_result",
-    "rekey",
     "eta_sweep",
     "ETAS",
     "execute_notebook",
