@@ -2,8 +2,15 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
+
+# A controller made in a test flies a few steps: it compiles only the rungs its scans need
+# (solvers.linearisation.RUNGS_ENV), and the steps are the same. A fresh machine compiles
+# less; a caller's own choice stands.
+os.environ.setdefault("PAPER_REPRO_RUNGS", "needed")
 
 
 @pytest.fixture

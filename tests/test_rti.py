@@ -20,6 +20,7 @@ from paper_repro.sim.loop import simulate
 from paper_repro.sim.plant import QuadrotorPlant
 from paper_repro.solvers.factory import make_controller
 from paper_repro.solvers.ipopt import TrackingNMPC
+from paper_repro.solvers.linearisation import RUNGS_ENV
 from paper_repro.solvers.rti import CAPACITIES, RealTimeNMPC
 from paper_repro.vehicles.quadrotor import equilibrium, rk4_discretisation
 
@@ -70,7 +71,7 @@ def test_converged_sqp_reaches_the_ipopt_optimum(reference, scene, metric):
         np.testing.assert_allclose(np.asarray(f(sol.x[j], sol.u[j])).ravel(), sol.x[j + 1],
                                    atol=1e-8)
     np.testing.assert_allclose(sol.x[-1], sol.x_a, atol=1e-8)
-    p = fast.config.nmpc
+    p = fast.config.quadrotor
     assert np.all(sol.u >= np.array(p.input_lower) - 1e-8)
     assert np.all(sol.u <= np.array(p.input_upper) + 1e-8)
     assert np.all(np.abs(sol.x[1:, 9:]) <= np.pi / 2 + 1e-8)
@@ -194,7 +195,7 @@ def test_a_smaller_lidar_capacity_gives_the_same_step(scene, metric):
     ladder = RealTimeNMPC(_config(metric))
     full = RealTimeNMPC(_config(metric), capacities=())
     rungs = [c for c in CAPACITIES if c < SMALL.points_per_region] + [SMALL.points_per_region]
-    assert [scan.capacity for scan, *_ in ladder.ladder.rungs] == rungs
+    assert ladder.ladder.capacities == rungs
     fitting = min(c for c in rungs if c >= max(counts))
     assert ladder.ladder.for_scan(visible).scan.capacity == fitting
     a = ladder.solve(x0, scene.targets[0], visible)
@@ -217,6 +218,34 @@ def test_a_smaller_lidar_capacity_gives_the_same_step(scene, metric):
     # Built in the background, every rung is loaded after ready(), which then waits for nothing.
     assert ladder.ready() >= 0.0
     assert ladder.ready() == 0.0
+
+
+@pytest.mark.parametrize("metric", ["smooth", "euclidean"])
+def test_rungs_made_when_needed_give_the_steps_of_rungs_made_at_once(scene, metric,
+                                                                     monkeypatch):
+    """PAPER_REPRO_RUNGS=needed: the smallest rung at the start, each other one when a scan
+    first needs it, every one after ``ready()``; the same steps, bit for bit, as with every
+    rung made at once. Another value is refused, by name."""
+    x0, _ = equilibrium([-18.3, 0.2, 2.0])
+    x0[6] = 0.3
+    scans = [[np.empty((0, 3))], Lidar(scene.clouds).scan(x0[:3])]
+    monkeypatch.setenv(RUNGS_ENV, "all")
+    at_once = RealTimeNMPC(_config(metric))
+    monkeypatch.setenv(RUNGS_ENV, "needed")
+    needed = RealTimeNMPC(_config(metric))
+    assert [r.scan.capacity for r in needed.ladder.rungs] == [1]
+    assert [r.scan.capacity for r in at_once.ladder.rungs] == at_once.ladder.capacities
+    for visible in scans:
+        a = at_once.solve(x0, scene.targets[0], visible)
+        b = needed.solve(x0, scene.targets[0], visible)
+        assert a.u.tobytes() == b.u.tobytes() and a.x.tobytes() == b.x.tobytes()
+    fitting = needed.ladder.for_scan(scans[1]).scan.capacity
+    assert [r.scan.capacity for r in needed.ladder.rungs] == [1, fitting]
+    assert needed.ready() >= 0.0
+    assert [r.scan.capacity for r in needed.ladder.rungs] == needed.ladder.capacities
+    monkeypatch.setenv(RUNGS_ENV, "some")
+    with pytest.raises(ValueError, match="PAPER_REPRO_RUNGS must be 'all' or 'needed'"):
+        RealTimeNMPC(_config(metric))
 
 
 def test_the_warm_start_is_the_reanchored_plan_bit_for_bit(scene):
@@ -266,7 +295,7 @@ def test_euclidean_metric_flies_past_the_corner_on_the_fast_path(scene):
     cfg = _config("euclidean")
     result = simulate(cfg, max_steps=300, progress=False, scene=near)
     assert result.failures == 0 and result.visible_points.max() > 0
-    p = cfg.nmpc
+    p = cfg.quadrotor
     assert np.all(result.u >= np.array(p.input_lower) - 1e-8)
     assert np.all(result.u <= np.array(p.input_upper) + 1e-8)
     assert result.clearance.min() > COLLISION_CLEARANCE

@@ -92,7 +92,7 @@ class GoldenFlight:
     barrier : ``(field, value)`` pairs of :class:`~paper_repro.config.BarrierParams` that
         differ from the paper's (the moving design's swept path and margin).
     prediction_ts : the prediction step (``NMPCParams.prediction_ts``; ``None``: T_s).
-    floor : m, the lowest altitude of 𝒳 (``NMPCParams.state_lower[2]``; ``None``: the
+    floor : m, the lowest altitude of 𝒳 (``QuadrotorParams.state_lower[2]``; ``None``: the
         paper's ground, 0), as the moving study's design keeps it.
     approach_time : the pace of a ``random-crossing`` (``SimulationParams.approach_time``;
         ``None``: the printed set-up's).

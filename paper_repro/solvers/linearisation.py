@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import bisect
 import itertools
+import os
 from typing import NamedTuple
 
 import casadi as ca
@@ -253,6 +254,21 @@ class Rung(NamedTuple):
     values: ca.Function | NativeFunction | None
 
 
+RUNGS_ENV = "PAPER_REPRO_RUNGS"
+"""Environment variable: which rungs a :class:`LinearisationLadder` compiles. ``all`` (the
+default): every rung, in the background, from the start. ``needed``: the smallest at the
+start, each other one when a scan first needs it (short runs and the tests compile less)."""
+
+
+def rungs_at_once() -> bool:
+    """Whether every rung is compiled from the start (:data:`RUNGS_ENV`); an unknown value is
+    refused, by name."""
+    value = os.environ.get(RUNGS_ENV, "all")
+    if value not in ("all", "needed"):
+        raise ValueError(f"{RUNGS_ENV} must be 'all' or 'needed', got {value!r}")
+    return value == "all"
+
+
 class LinearisationLadder:
     """The linearisation compiled for several LiDAR capacities (points per region slot).
 
@@ -271,7 +287,9 @@ class LinearisationLadder:
     compile : build C (cached, :class:`~paper_repro._native.NativeFunction`); without it, or
         without a compiler, one rung evaluated in CasADi's virtual machine. The rungs are
         compiled in the background, one gcc per core; a rung is waited for when a scan first
-        needs it (:meth:`wait` waits for all).
+        needs it (:meth:`wait` waits for all). Which rungs start at once is
+        :data:`RUNGS_ENV`'s choice: all of them (the default), or the smallest, then each
+        when a scan first needs it.
     values : also build each rung's values-only function (what the line search evaluates);
         without a line search it is never called, and not compiling it halves the first
         build on a new machine.
@@ -280,12 +298,13 @@ class LinearisationLadder:
 
     Attributes
     ----------
-    rungs : [:class:`Rung`], by increasing capacity.  native : compiled or not.
+    capacities : every rung's capacity, increasing.  native : compiled or not.
     """
 
     def __init__(self, ocp: OCP, capacities=(), compile: bool = True, values: bool = True,
                  shared_barrier: bool = False):
         top = ocp.scan.capacity
+        all_at_once = rungs_at_once()
 
         def build(scan=None, values_only=False):
             return linearisation(ocp, scan, values_only, shared_barrier)
@@ -294,34 +313,51 @@ class LinearisationLadder:
         self.sizes = [fn.nnz_out(i) for i in range(fn.n_out())]
         self.native = bool(compile and compiler() is not None)
         if not self.native:
-            self.rungs = [Rung(ocp.scan, fn, build(values_only=True)
-                               if values else None)]
+            self.capacities = [top]
+            self._rungs = {top: Rung(ocp.scan, fn, build(values_only=True) if values else None)}
         else:
-            caps = sorted({c for c in capacities if c < top} | {top})
-            # Compiled in the background: the smallest first (a flight starts with little
-            # in view), then the largest, which takes longest (a few seconds to a minute).
-            built = {}
-            for cap in caps[:1] + caps[:0:-1]:
+            self.capacities = sorted({c for c in capacities if c < top} | {top})
+
+            def rung(cap: int) -> Rung:
+                """The rung of capacity ``cap``, its C compiling in the background."""
                 scan = ocp.scan.with_capacity(cap)
-                built[cap] = Rung(
-                    scan, NativeFunction(fn if cap == top else build(scan),
-                                         background=True),
-                    NativeFunction(build(scan, values_only=True),
-                                   background=True) if values else None)
-            self.rungs = [built[cap] for cap in caps]
-        self._capacities = [rung.scan.capacity for rung in self.rungs]
+                return Rung(scan, NativeFunction(fn if cap == top else build(scan),
+                                                 background=True),
+                            NativeFunction(build(scan, values_only=True), background=True)
+                            if values else None)
+
+            self._rung = rung
+            # The smallest first (a flight starts with little in view), then the largest,
+            # which takes longest (a few seconds to a minute).
+            caps = self.capacities
+            self._rungs = {cap: rung(cap) for cap in
+                           (caps[:1] + caps[:0:-1] if all_at_once else caps[:1])}
         self._last = {}  # capacity -> (the regions' bytes, their packing): see pack()
 
+    @property
+    def rungs(self) -> list[Rung]:
+        """The rungs made so far (every one, unless :data:`RUNGS_ENV` is ``needed``), by
+        increasing capacity."""
+        return [self._rungs[c] for c in self.capacities if c in self._rungs]
+
     def wait(self) -> float:
-        """Wait until every rung is compiled and loaded; the seconds waited."""
+        """Make every rung not made yet, then wait until every one is compiled and loaded;
+        the seconds waited."""
+        for cap in self.capacities:
+            if cap not in self._rungs:
+                self._rungs[cap] = self._rung(cap)
         return sum(fn.load() for rung in self.rungs for fn in rung[1:]
                    if isinstance(fn, NativeFunction))
 
     def for_scan(self, visible) -> Rung:
-        """The rung of the smallest capacity that holds the scan."""
+        """The rung of the smallest capacity that holds the scan (made now if it was not)."""
         need = max(map(len, visible), default=0)
-        i = bisect.bisect_left(self._capacities, need)
-        return self.rungs[min(i, len(self.rungs) - 1)]  # too many: the nearest points kept
+        i = bisect.bisect_left(self.capacities, need)
+        cap = self.capacities[min(i, len(self.capacities) - 1)]  # too many: the nearest kept
+        rung = self._rungs.get(cap)
+        if rung is None:
+            rung = self._rungs[cap] = self._rung(cap)
+        return rung
 
     def pack(self, visible, position, scan: ScanLayout, velocities=None) -> np.ndarray:
         """:meth:`ScanLayout.pack` of a checked scan

@@ -192,11 +192,9 @@ class RealTimeNMPC:
         self._w, self._step_lower, self._step_upper = np.zeros(nw), np.empty(nw), np.empty(nw)
         self._anchor = np.zeros(ocp.nx)  # the move of the previous plan, m (position only)
         # A compiled rung writes its QP into the same buffers at every call: each rung's QP is
-        # bound to them once (checked and addressed there, not at every step).
-        self._bound_qps = {rung.linearisation: self.qp.bind(*rung.linearisation.outputs[:5],
-                                                            self._step_lower, self._step_upper)
-                           for rung in self.ladder.rungs
-                           if isinstance(rung.linearisation, NativeFunction)}
+        # bound to them once, at its first solve (checked and addressed there, not at every
+        # step).
+        self._bound_qps = {}
 
     @property
     def qp_counts(self) -> dict[str, int]:
@@ -237,7 +235,7 @@ class RealTimeNMPC:
         box = ocp.state_box(x0)
         if box[0] is not ocp.state_bounds[0] or box[1] is not ocp.state_bounds[1]:
             lbw, ubw = layout.bounds(ocp, box)  # x0 violates 𝒳: the relaxed box (rare)
-        bound_qp = self._bound_qps.get(rung.linearisation)
+        bound_qp = self._bound_qp(rung.linearisation)
         lower, upper = self._step_lower, self._step_upper
 
         def values(dw, alpha):  # (cost, gap, eq) at the iterate moved by α·Δw
@@ -285,6 +283,17 @@ class RealTimeNMPC:
         x_a, u_a = ocp.equilibrium_of(a)
         return NMPCSolution(U, X, x_a, u_a, bool(success and finite), status, it, elapsed,
                             merit)
+
+    def _bound_qp(self, fn):
+        """The QP bound to a compiled rung's output buffers (bound at its first solve), or
+        ``None`` for a rung evaluated by CasADi."""
+        if not isinstance(fn, NativeFunction):
+            return None
+        bound = self._bound_qps.get(fn)
+        if bound is None:
+            bound = self._bound_qps[fn] = self.qp.bind(*fn.outputs[:5], self._step_lower,
+                                                       self._step_upper)
+        return bound
 
     def ready(self) -> float:
         """Wait until every compiled linearisation is built and loaded (they build in the
