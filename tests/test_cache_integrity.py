@@ -154,6 +154,28 @@ def test_a_damaged_tuning_storage_is_moved_aside_and_the_study_starts_anew(tmp_p
     assert len(finished_trials(res.study)) == 1
 
 
+def test_a_result_saved_without_its_scans_is_flown_again_only_for_who_needs_them(tmp_path):
+    """A result saved before the loop logged its scans still serves a table; a figure that
+    draws the scans (``needs=("scan",)``) has it flown again, once, and the flight is the
+    same."""
+    from paper_repro.sim.result import write_manifest
+
+    runs = tmp_path / "runs"
+    out, flown = ensure_result(SPEC, runs, progress=False)
+    before = SimulationResult.load(out)
+    with np.load(out / "result.npz") as z:  # as an older version saved it
+        older = {k: z[k] for k in z.files if not k.startswith("scan_")}
+    np.savez_compressed(out / "result.npz", **older)
+    write_manifest(out)
+    assert not SimulationResult.load(out).has("scan")
+    assert ensure_result(SPEC, runs, progress=False) == (out, False)
+    again, flown = ensure_result(SPEC, runs, progress=False, needs=("scan",))
+    assert again == out and flown
+    after = SimulationResult.load(again)
+    assert after.has("scan") and np.array_equal(after.x, before.x)
+    assert ensure_result(SPEC, runs, progress=False, needs=("scan",)) == (out, False)
+
+
 # --- re-keying the cache after a layout change that moves no flight ---------------------------
 
 def _former_layout(config: dict) -> dict:

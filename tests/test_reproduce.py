@@ -17,6 +17,7 @@ from paper_repro import Config, DistanceParams, NMPCParams, paths
 from paper_repro.cli import reproduce as reproduce_command
 from paper_repro.cli.parser import main
 from paper_repro.progress import PrefixedLines, heartbeat
+from paper_repro.sim.perception import ScanLog
 from paper_repro.sim.result import SimulationResult
 from paper_repro.studies import reproduce as R
 from paper_repro.studies import runs
@@ -30,6 +31,10 @@ def _fake_result(spec, controller=None, progress=None, steps=None):
     x = np.zeros((steps + 1, 12))
     x[:, :3] = np.array([22.0, -22.0, 0.0]) + np.outer(k * 0.01, [0.0, 0.0, 1.0])
     u = 5.49 + 0.01 * np.sin(k[:-1] * 0.1)[:, None] * np.ones(4)
+    scene = spec.scene()
+    scans = ScanLog(len(scene.clouds), 3)  # nothing in view, as the clearance says
+    for _ in range(steps):
+        scans.add([np.empty((0, 3))] * len(scene.clouds))
     return SimulationResult(
         t=k[:-1] * 0.01, x=x, u=u, x_a=x[:-1], u_a=np.full((steps, 4), 5.49),
         solve_time=np.full(steps, 0.05), iterations=np.full(steps, 8),
@@ -37,8 +42,8 @@ def _fake_result(spec, controller=None, progress=None, steps=None):
         clearance=np.full(steps, 11.0), target_index=np.zeros(steps, int),
         visible_points=np.zeros(steps, int), dropped_points=np.zeros(steps, int),
         targets=np.array([[-12.0, 18, 11], [-21, 18, 0]]), reached=np.array([-1, -1]),
-        outcome="step_limit", scene=spec.scene(), config=spec.config,
-        meta={"wall_time_s": 1.0})
+        outcome="step_limit", scene=scene, config=spec.config,
+        meta={"wall_time_s": 1.0}, **scans.arrays())
 
 
 @pytest.fixture

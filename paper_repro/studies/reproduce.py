@@ -36,7 +36,7 @@ from paper_repro import paths
 from paper_repro.config import Config
 from paper_repro.progress import PrefixedLines, duration, heartbeat, print_now
 from paper_repro.sim.result import read_arrays
-from paper_repro.studies.runs import RunSpec, ensure_result, usable_or_set_aside
+from paper_repro.studies.runs import RunSpec, ensure_result, holds, usable_or_set_aside
 
 DESCRIPTION = """\
 Regenerate every figure of the paper and the summary table.
@@ -346,7 +346,7 @@ def _fly_missing(todo: list[RunSpec], total: int, force: bool, results_dir, prog
         out = spec.directory(results_dir)
         step = f"[{i}/{total}] simulate {spec.name}"
         result_dirs[spec.config.distance.metric] = out
-        if not force and usable_or_set_aside(out, log):
+        if not force and usable_or_set_aside(out, log) and holds(out, spec, ("scan",)):
             log(f"{step}: cached in {paths.in_repo(out)}")
         else:
             log(f"{step}: flying up to {spec.max_steps} steps ...")

@@ -222,9 +222,10 @@ def usable_or_set_aside(directory, warn=None) -> bool:
 
 def ensure_result(spec: RunSpec, results_dir=None, force: bool = False,
                   progress: bool | None = None, controller=None,
-                  warn=None) -> tuple[Path, bool]:
+                  warn=None, needs: tuple[str, ...] = ()) -> tuple[Path, bool]:
     """The cache folder of ``spec``, flying the run first if it is missing, damaged (moved
-    aside with one warning line, :func:`usable_or_set_aside`) or forced (``force``).
+    aside with one warning line, :func:`usable_or_set_aside`), saved without what it
+    ``needs`` (:func:`holds`) or forced (``force``).
 
     Parameters
     ----------
@@ -234,24 +235,29 @@ def ensure_result(spec: RunSpec, results_dir=None, force: bool = False,
     progress : closed-loop progress bar (default: when writing to a terminal).
     controller : a built controller for ``spec.config`` to reuse (it is reset before flying).
     warn : where the line about a damaged entry goes (default: a warning).
+    needs : what the caller reads of the result besides the flight (``("scan",)``: a figure
+        that draws the scans), see :func:`holds`.
 
     Returns (folder, simulated).
     """
     out = spec.directory(results_dir)
-    if not force and usable_or_set_aside(out, warn) and _holds_what_it_needs(out, spec):
+    if not force and usable_or_set_aside(out, warn) and holds(out, spec, needs):
         return out, False
     store(fly(spec, controller=controller, progress=progress), out)
     return out, True
 
 
-def _holds_what_it_needs(directory: Path, spec: RunSpec) -> bool:
-    """A run that predicts moving regions carries the velocities it handed the controller
-    (results saved before the loop logged them are flown again, once)."""
-    if spec.config.nmpc.prediction == "static":
-        return True
+def holds(directory, spec: RunSpec, needs: tuple[str, ...] = ()) -> bool:
+    """The result saved in ``directory`` holds what its use needs: each of ``needs``
+    (:meth:`~paper_repro.sim.result.SimulationResult.has` names them), and the velocities it
+    handed the controller when ``spec`` predicts moving regions. A result saved before the
+    loop logged them is flown again, once, by the caller that needs them."""
     from paper_repro.sim.result import read_arrays
 
-    return "region_velocities" in read_arrays(directory, "region_velocities")
+    names = ["scan_index" if n == "scan" else n for n in needs]
+    if spec.config.nmpc.prediction != "static":
+        names.append("region_velocities")
+    return set(names) <= set(read_arrays(directory, *names))
 
 
 def fly(spec: RunSpec, controller=None, progress: bool | None = None):
