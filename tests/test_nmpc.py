@@ -207,9 +207,11 @@ def test_a_config_saved_before_the_solver_options_moved_loads_them_in_their_new_
     old["simulation"].update(lidar_range=4.5, prediction="kalman")
     del old["solver"], old["sensor"]["range"], old["nmpc"]["prediction"]
     assert Config.from_dict(old) == new
+    box = {("nmpc", name) for name in ("state_lower", "state_upper", "input_lower",
+                                       "input_upper")}  # tested with the run cache
     assert set(MOVED) == {("nmpc", "solver"), ("nmpc", "sqp_iterations"),
                           ("nmpc", "line_search"), ("nmpc", "qp_solver"),
-                          ("simulation", "lidar_range"), ("simulation", "prediction")}
+                          ("simulation", "lidar_range"), ("simulation", "prediction")} | box
     both = new.to_dict()
     both["simulation"]["lidar_range"] = 4.5
     with pytest.raises(ValueError, match=r"simulation.lidar_range .* sensor.range"):

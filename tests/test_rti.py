@@ -413,8 +413,8 @@ def test_merit_line_search_shortens_overshooting_steps_and_damps_the_next_qps():
     """On a merit that rises along the full step the step is halved until Armijo holds, δ
     starts at ``damping_start`` and grows; full steps relax δ back to 0. A descending full
     step is taken as it is, with one evaluation."""
+    from paper_repro.solvers.line_search import MeritLineSearch
     from paper_repro.solvers.linearisation import QPLayout
-    from paper_repro.solvers.rti import MeritLineSearch
 
     layout = QPLayout(horizon=2, nx=1, nu=1, na=1, ns=0, nc=1)
     search = MeritLineSearch(layout, damping_start=10.0, grow=4.0, relax=2.0)

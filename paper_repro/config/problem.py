@@ -324,14 +324,14 @@ class SolverParams:
         :mod:`paper_repro.solvers.ipopt`, as the paper).
     sqp_iterations : SQP iterations per sampling instant of the ``rti`` solver (1 is the
         real-time iteration).
-    line_search : *chosen* ``False``: the ``rti`` solver takes every full Gauss-Newton step,
-        the textbook real-time iteration. ``True`` is the *damped RTI*
-        (:class:`~paper_repro.solvers.rti.MeritLineSearch`): steps are shortened on the ℓ1 merit
-        function and the next instants' QPs get a Levenberg–Marquardt term. It is smoother
-        than the paper's controller, not a faster way to the same one: with the Euclidean
-        metric it removes most of the chattering the paper reports (Fig. 8), so it is not the
-        default. It is the remedy where a region moves at the vehicle, where full steps fall
-        into a period-2 oscillation that IPOPT does not show (``benchmarks/fidelity.py``).
+    line_search : *chosen* ``False``: the ``rti`` solver takes every full Gauss-Newton step, the
+        textbook real-time iteration. ``True`` is the *damped RTI*
+        (:class:`~paper_repro.solvers.line_search.MeritLineSearch`): steps are shortened on the
+        ℓ1 merit function and the next instants' QPs get a Levenberg–Marquardt term. It is
+        smoother than the paper's controller, not a faster way to the same one: with the
+        Euclidean metric it removes most of the chattering the paper reports (Fig. 8), so it is
+        not the default. It is the remedy where a region moves at the vehicle, where full steps
+        fall into a period-2 oscillation that IPOPT does not show (``benchmarks/fidelity.py``).
     qp_solver : QP solver of the ``rti`` solver: ``"riccati-ipm"`` (default: a Riccati
         recursion warm-started with the previous active set (:mod:`~paper_repro.solvers.riccati_qp`)
         within a few factorisations (:data:`paper_repro.solvers.rti.IPM_ACTIVE_SET_BUDGET`),
