@@ -24,11 +24,13 @@ solver's options left the problem's ``nmpc`` part, the LiDAR's range and the pre
 moving regions left the mission (``simulation``), and the quadrotor's boxes 𝒳 and 𝒰 joined
 the rest of its data (``quadrotor``)."""
 
-KEYED_IN_FORMER_PLACE = (("nmpc", "state_lower"), ("nmpc", "state_upper"),
-                         ("nmpc", "input_lower"), ("nmpc", "input_upper"))
+KEYED_IN_FORMER_PLACE = {("nmpc", "state_lower"): "t", ("nmpc", "state_upper"): "state_lower",
+                         ("nmpc", "input_lower"): "state_upper",
+                         ("nmpc", "input_upper"): "input_lower"}
 """Settings of :data:`MOVED` that a run's key, and a study's record of its runs, still name in
-their former place (:func:`as_keyed`): they moved after the committed evidence was flown, and
-a move changes no flight, so the keys and the records stay as they were."""
+their former place (:func:`as_keyed`), each with the setting it followed there: they moved
+after the committed evidence was flown, and a move changes no flight, so the keys and the
+records stay as they were, byte for byte."""
 
 
 ADDED = {
@@ -80,10 +82,13 @@ def as_keyed(data: dict) -> dict:
     ``study.json`` records."""
     data = {part: dict(values) if isinstance(values, dict) else values
             for part, values in data.items()}
-    for old_part, old_name in KEYED_IN_FORMER_PLACE:
+    for (old_part, old_name), after in KEYED_IN_FORMER_PLACE.items():
         new_part, new_name = MOVED[(old_part, old_name)]
         if isinstance(data.get(new_part), dict) and new_name in data[new_part]:
-            data.setdefault(old_part, {})[old_name] = data[new_part].pop(new_name)
+            value, part = data[new_part].pop(new_name), data.setdefault(old_part, {})
+            items = list(part.items())
+            at = next((i + 1 for i, (k, _) in enumerate(items) if k == after), len(items))
+            data[old_part] = dict(items[:at] + [(old_name, value)] + items[at:])
     return data
 
 

@@ -198,8 +198,11 @@ def test_the_quadrotor_box_moved_to_the_vehicle_and_every_key_stays():
     """𝒳 and 𝒰 live with the quadrotor's other data; a ``config.json`` that gives them in the
     ``nmpc`` part loads into the same configuration, and a run's key still hashes them where
     they were (the committed tables hold those keys); both places at once are refused."""
+    from paper_repro import paths
     from paper_repro.config_history import without_added
     from paper_repro.presets import moving_design_controller
+    from paper_repro.studies.catalogue import make_study
+    from paper_repro.studies.engine import study_record
 
     cfg = moving_design_controller(Config(nmpc=NMPCParams(prediction="oracle")), "smooth")
     assert cfg.quadrotor.state_lower[2] > 0 and not hasattr(cfg.nmpc, "state_lower")
@@ -209,6 +212,9 @@ def test_the_quadrotor_box_moved_to_the_vehicle_and_every_key_stays():
     assert Config.from_dict(former) == cfg == Config.from_dict(cfg.to_dict())
     keyed = json.loads(json.dumps(cfg.key_dict(), default=str))
     assert keyed == without_added(former, Config().to_dict())
+    # A study's record, byte for byte as committed: the moving study's runs change the box.
+    study = make_study("moving_obstacles")
+    assert study_record(study) == (paths.study_dir("moving_obstacles") / "study.json").read_text()
     assert Config.from_dict(cfg.key_dict()) == cfg
     both = json.loads(json.dumps(cfg.to_dict(), default=str))
     both["nmpc"]["state_lower"] = both["quadrotor"]["state_lower"]

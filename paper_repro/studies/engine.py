@@ -288,7 +288,6 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
       brought up to date, as when the cache has been re-keyed.
 
     :func:`load_table` joins the two again."""
-    from paper_repro.evidence.golden import golden_hash, layer_of
     from paper_repro.sim.result import run_metadata
 
     flight, timings = metrics.split_timings(table, TIMING_COLUMNS)
@@ -303,8 +302,20 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
         atomic_write(out / "timings.csv", lambda p: table[["name", *timing]].to_csv(p, index=False))
     else:
         _current_locations(out / "timings.csv", table)
-    # The base as a run's key sees it (config_history.ADDED settings at their neutral value left
-    # out, as before they existed); each run's changes give its whole configuration back.
+    text = study_record(study)
+    atomic_write(out / "study.json", lambda p: p.write_text(text))
+    if not keep:
+        machine = json.dumps({"wall_time_s": wall, "meta": run_metadata()}, indent=1,
+                             default=str) + "\n"
+        atomic_write(out / "timings.json", lambda p: p.write_text(machine))
+
+
+def study_record(study: Study) -> str:
+    """The text of ``study.json``: the runs, their configurations and the golden hash. The base
+    is the configuration as a run's key sees it (:meth:`Config.key_dict`); each run's changes
+    give its whole configuration back (:func:`config_changes`)."""
+    from paper_repro.evidence.golden import golden_hash, layer_of
+
     base = study.specs[0].config.key_dict()
     meta = {"name": study.name, "description": study.description,
             "runs": len(study.specs),
@@ -314,12 +325,7 @@ def _save(study: Study, table, out: Path, wall: float) -> None:
                        "labels": dict(s.labels),
                        "config_changes": config_changes(base, s.config)}
                       for s in study.specs]}
-    text = json.dumps(meta, indent=1, default=str) + "\n"
-    atomic_write(out / "study.json", lambda p: p.write_text(text))
-    if not keep:
-        machine = json.dumps({"wall_time_s": wall, "meta": run_metadata()}, indent=1,
-                             default=str) + "\n"
-        atomic_write(out / "timings.json", lambda p: p.write_text(machine))
+    return json.dumps(meta, indent=1, default=str) + "\n"
 
 
 def _same_runs(timings: Path, table) -> bool:
