@@ -69,7 +69,8 @@ class ScanLog:
         if key != self._last:
             self._last = key
             self._sizes.append([len(v) for v in visible])
-            self._points.extend(np.asarray(v, float).reshape(-1, self.dim) for v in visible)
+            # copies: a sensor or a map may hand out the same arrays again, changed
+            self._points.extend(np.array(v, float).reshape(-1, self.dim) for v in visible)
         self._index.append(len(self._sizes) - 1)
 
     def arrays(self) -> dict:
