@@ -91,16 +91,17 @@ def paired(table: pd.DataFrame, a: str = "smooth", b: str = "euclidean",
 def by_setting(table: pd.DataFrame, settings=("metric", "eta", "sigma"),
                columns=("tv_u_rate_N_per_s", "hf_energy_fraction", "max_abs_du_N",
                         "min_clearance_m", "time_to_complete_s"),
-               n_resamples: int = 2000, confidence: float = 0.95, seed: int = 0
-               ) -> pd.DataFrame:
+               n_resamples: int = 2000, confidence: float = 0.95, seed: int = 0,
+               events=("completed", "collision", "stalled", "failed")) -> pd.DataFrame:
     """Per setting (e.g. each (η, σ) of a sweep): the median of each column over scenes with a
-    bootstrap interval, and the completion, collision and stall rates with binomial intervals.
+    bootstrap interval, and the rate of each of ``events`` (completion, collision, stall and
+    failure; any event column of the run table, such as ``"unsafe"``) with binomial intervals.
     """
     t = _events(table)
     rows = []
     for key, group in t.groupby(list(settings), sort=True, dropna=False):
         row = {**_group_dict(list(settings), key), "runs": len(group)}
-        for event in ("completed", "collision", "stalled", "failed"):
+        for event in events:
             k = int(group[event].sum())
             ci = stats.binomtest(k, len(group)).proportion_ci(confidence, method="exact")
             row.update({f"{event}_rate": k / len(group), f"{event}_low": ci.low,

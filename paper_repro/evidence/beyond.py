@@ -12,6 +12,7 @@ import pandas as pd
 
 from paper_repro import paths
 from paper_repro.evidence import formatting as fmt
+from paper_repro.evidence import hardware
 
 
 def sensor_noise_cost() -> str:
@@ -486,8 +487,9 @@ def _design_span(study_json) -> float:
 def overview() -> str:
     """Beyond the paper, for the README: the moving crossings with the paper's barrier and the
     design (``moving_obstacles_rates.csv``), whether they were avoidable (``avoidability.csv``),
-    the tuning's held-out passages, the guide past the deadlocks (``guidance_rates.csv``) and
-    the noisy LiDAR through the map (``sensor_noise_cost.csv``)."""
+    the tuning's held-out passages, the guide past the deadlocks (``guidance_rates.csv``),
+    the noisy LiDAR through the map (``sensor_noise_cost.csv``) and the flights against
+    RotorPy (:func:`paper_repro.evidence.hardware.overview`)."""
     import json
 
     figs = paths.figures_dir()
@@ -551,4 +553,5 @@ def overview() -> str:
                  f"{fmt.num(hf['noisy-map'].median_sensor)}; total variation through the map "
                  f"×{fmt.num(tv.median_effect)} [{fmt.num(tv.low)}, {fmt.num(tv.high)}] the "
                  "perfect sensor's, per passage", "`sensor_noise_cost.csv`"])
+    rows.append(hardware.overview(hardware.runs()))
     return fmt.markdown_table(["beyond the paper", "measured here", "table"], rows)

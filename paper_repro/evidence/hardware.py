@@ -4,10 +4,13 @@
   (``figures/hardware/agreement.csv``, ``benchmarks/rotorpy_agreement.py``);
 * :func:`margins`: per effect and metric, the largest level flown with no unsafe run;
 * :func:`cells`: each effect alone at each level, with and without its remedy;
+* :func:`claim`: per cell, the Euclidean thrusts' power above 5 Hz over the smoothed ones';
+* :func:`breaks`: what breaks first, and what its remedy buys, in sentences;
 * :func:`combined`: every effect at once.
 
-The last three read the studies' run tables (``figures/studies/<study>/table.parquet``). A run
-is *unsafe* when it collides, leaves the workspace (into the ground, say) or ends on a fault
+They read the studies' run tables (``figures/studies/<study>/table.parquet``) and what their
+notebook made from them (``<study>_paired.csv``). A run is *unsafe* when it collides, leaves
+the workspace (into the ground, say) or ends on a fault
 (:func:`paper_repro.analysis.statistics.margins`).
 """
 
@@ -28,6 +31,14 @@ METRICS = ("smooth", "euclidean")
 
 STUDIES = ("hardware_vehicle", "hardware_air_latency")
 """The studies of one effect at a time (``studies.catalogue.HARDWARE_GROUPS``)."""
+COMBINED = "hardware_combined"
+"""The study of every effect at once (``studies.catalogue.hardware_combined``)."""
+
+EFFECTS = {"none": "every effect off", "motor_lag": "motor lag", "rotor_drag": "rotor drag",
+           "thrust": "thrust", "mass": "mass", "com_offset": "centre of mass", "wind": "wind",
+           "gust": "gust", "estimation": "state estimate", "delay": "computation delay",
+           "combined": "every effect at once"}
+"""Each effect's name in the book (the ``effect`` column holds the catalogue's)."""
 
 
 def agreement(folder: Path | None = None) -> str:
@@ -41,6 +52,15 @@ def agreement(folder: Path | None = None) -> str:
     return fmt.markdown_table(["scene", "steps (ours / RotorPy)",
                                "largest distance between the paths",
                                "largest thrust difference", "outcome (ours / RotorPy)"], rows)
+
+
+def lidar_range(study: str = STUDIES[0], root: Path | None = None) -> float:
+    """m, the LiDAR's range r_s of the study's flights (its ``study.json``)."""
+    import json
+
+    root = paths.figures_dir() / "studies" if root is None else Path(root)
+    return float(json.loads((root / study / "study.json").read_text())
+                 ["base_config"]["sensor"]["range"])
 
 
 def runs(studies=STUDIES, root: Path | None = None) -> pd.DataFrame:
@@ -63,7 +83,7 @@ def margins(table: pd.DataFrame) -> str:
     for effect in dict.fromkeys(m.index.get_level_values("effect")):
         cells = table[table["effect"] == effect].sort_values("level")
         names = dict(zip(cells["level"], cells["level_name"]))
-        row = [effect, ", ".join(names.values())]
+        row = [EFFECTS[effect], ", ".join(names.values())]
         for column in ("margin", "first_failure"):
             row.append(" / ".join("—" if np.isnan(v := m.loc[(effect, metric), column])
                                   else names[v] for metric in METRICS))
@@ -76,7 +96,13 @@ def margins(table: pd.DataFrame) -> str:
 
 def _unsafe(g: pd.DataFrame) -> str:
     """``k/n [low, high] %``: the unsafe runs of ``g`` with a Clopper–Pearson interval."""
-    k, n = int(g["unsafe"].sum()), len(g)
+    return _share_of(g["unsafe"])
+
+
+def _share_of(events: pd.Series) -> str:
+    """``k/n [low, high] %``: the runs with a boolean event, with a Clopper–Pearson
+    interval."""
+    k, n = int(events.sum()), len(events)
     ci = stats.binomtest(k, n).proportion_ci(0.95, method="exact")
     return f"{k}/{n} [{100 * ci.low:.0f}, {100 * ci.high:.0f}] %"
 
@@ -103,13 +129,140 @@ HEADER = ["unsafe runs (smoothed / Euclidean)", "completed", "closest approach",
 def cells(table: pd.DataFrame) -> str:
     """Each effect alone at each level (the baseline first), with its remedy where flown."""
     t = table[table["effect"] != "combined"]
-    return fmt.markdown_table(["cell", *HEADER], _cell_rows(t, lambda r: (
-        "every effect off" if r["effect"] == "none" else f"{r['effect']} {r['level_name']}"
-        + ("" if r["remedy"] == "none" else f", {r['remedy']}"))))
+    return fmt.markdown_table(["cell", *HEADER], _cell_rows(t, cell_name))
+
+
+def cell_name(r) -> str:
+    """A cell's name in the book: its effect, level and remedy (a row of the run table)."""
+    if r["effect"] == "none":
+        return EFFECTS["none"]
+    if r["effect"] == "combined":
+        return (f"{EFFECTS['combined']}, {r['level_name']}"
+                + ("" if r["remedy"] == "none" else ", every remedy"))
+    return (f"{EFFECTS[r['effect']]} {r['level_name']}"
+            + ("" if r["remedy"] == "none" else f", {r['remedy']}"))
 
 
 def combined(table: pd.DataFrame) -> str:
-    """Every effect at once, at each level, without and with every remedy."""
+    """Every effect at once, at each level, without and with every remedy; with the
+    collisions apart, each with its Clopper–Pearson interval."""
     t = table[table["effect"] == "combined"]
-    return fmt.markdown_table(["level", *HEADER], _cell_rows(t, lambda r: (
-        r["level_name"] + ("" if r["remedy"] == "none" else ", every remedy"))))
+    rows = _cell_rows(t, cell_name)
+    for row, (_, g) in zip(rows, t.groupby(["effect", "level", "remedy"], sort=False),
+                           strict=True):
+        row.insert(1, " / ".join(_share_of(g[g["metric"] == m]["collision"].fillna(False)
+                                           .astype(bool)) for m in METRICS))
+    return fmt.markdown_table(["cell", "collisions (smoothed / Euclidean)", *HEADER], rows)
+
+
+def claim(table: pd.DataFrame, n_resamples: int = 2000) -> str:
+    """Per cell of one effect alone, passage by passage: the Euclidean thrusts' share of power
+    above 5 Hz over the smoothed ones', its median over the passages with a percentile
+    bootstrap interval (:func:`paper_repro.analysis.statistics.paired`), and whether the
+    paper's claim (the Euclidean metric chatters more) holds: the whole interval above 1."""
+    t = table[table["effect"] != "combined"]
+    rows = []
+    for _, g in t.groupby(["effect", "level", "remedy"], sort=False):
+        p = statistics.paired(g, columns=("hf_energy_fraction",), n_resamples=n_resamples)
+        r = p.iloc[0]
+        holds = ("yes" if r["low"] > 1 else "no, the reverse" if r["high"] < 1
+                 else "not shown") if r["effect"] == "ratio b/a" else "not measured"
+        rows.append([cell_name(g.iloc[0]), f"{int(r['scenes'])}",
+                     f"{fmt.share(r['median_smooth'])} / {fmt.share(r['median_euclidean'])}",
+                     f"{fmt.ratio(r['median_effect'])} [{r['low']:.3g}, {r['high']:.3g}]",
+                     holds])
+    return fmt.markdown_table(["cell", "passages", "power above 5 Hz, median (smoothed / "
+                               "Euclidean)", "Euclidean over smoothed, per passage (median, "
+                               "95 %)", "claim holds"], rows)
+
+
+def breaks(table: pd.DataFrame, lidar_range: float) -> str:
+    """What breaks first, as a list: the collisions over every passage of one effect alone,
+    then per metric each effect with an unsafe run (its unsafe levels, and the same levels
+    with its remedy), and the effects with none."""
+    t = table[(table["effect"] != "combined") & (table["status"] == "ok")]
+    t = t.assign(collision=t["collision"].fillna(False).astype(bool))
+    counts = []
+    for metric, label in zip(METRICS, ("smoothed D", "Euclidean ½d²")):
+        c = t.loc[t["metric"] == metric, "collision"]
+        high = stats.binomtest(int(c.sum()), len(c)).proportion_ci(0.95, method="exact").high
+        counts.append(f"{label} {int(c.sum())} in {len(c):,} (the rate is below "
+                      f"{100 * high:.2g} % at 95 % confidence)")
+    lines = [f"- Collisions, each effect alone: {'; '.join(counts)}."]
+    m = statistics.margins(table)
+    for metric, label in zip(METRICS, ("smoothed D", "Euclidean ½d²")):
+        mine = m[m["metric"] == metric]
+        lines.append(f"- With the {label}:")
+        for effect in mine.loc[mine["first_failure"].notna(), "effect"]:
+            lines.append("  - " + _effect_breaks(
+                t[(t["effect"] == effect) & (t["metric"] == metric)], lidar_range))
+        safe = [EFFECTS[e] for e in mine.loc[mine["first_failure"].isna(), "effect"]]
+        lines.append(f"  - no unsafe run with {', '.join(safe[:-1])} or {safe[-1]}, at any "
+                     "level flown." if len(safe) > 1 else
+                     f"  - no unsafe run with {safe[0]}, at any level flown." if safe else
+                     "  - every effect has an unsafe run at some level.")
+    return "\n".join(lines)
+
+
+def _collided(g: pd.DataFrame) -> str:
+    """``", k collided"`` when runs of ``g`` collided, else ``""``."""
+    k = int(g["collision"].sum())
+    return f", {k} collided" if k else ""
+
+
+def _effect_breaks(t: pd.DataFrame, lidar_range: float) -> str:
+    """One effect's unsafe levels for one metric (``t``: its runs), with its remedy's."""
+    plain = t[t["remedy"] == "none"]
+    unsafe = [(level, g) for level, g in plain.groupby("level") if g["unsafe"].any()]
+    first = unsafe[0][1].iloc[0]
+    text = (f"{EFFECTS[first['effect']]}: unsafe from {first['level_name']} ("
+            + ", ".join(f"{int(g['unsafe'].sum())}/{len(g)} at {g.iloc[0]['level_name']}"
+                        + _collided(g) for _, g in unsafe) + ").")
+    blind = [g.iloc[0]["level_name"] for _, g in unsafe
+             if g["min_clearance_m"].min() > lidar_range]
+    if blind:
+        text += (f" At {', '.join(blind)} every run left the workspace before a region came "
+                 f"within the LiDAR's {lidar_range:g} m.")
+    remedied = t[(t["remedy"] != "none") & t["level"].isin([level for level, _ in unsafe])]
+    for remedy, g in remedied.groupby("remedy", sort=False):
+        text += f" With its remedy ({remedy}): " + ", ".join(
+            f"{int(c['unsafe'].sum())}/{len(c)} at {c.iloc[0]['level_name']}"
+            for _, c in g.groupby("level")) + "."
+    return text
+
+
+def overview(table: pd.DataFrame) -> list[str]:
+    """The README's row of the hardware studies: what was flown, what it measured, the
+    tables."""
+    t = table[(table["effect"] != "combined") & (table["status"] == "ok")]
+    collided = t["collision"].fillna(False).astype(bool)
+    collisions = ", ".join(f"{label} {int(collided[t['metric'] == metric].sum())}/"
+                           f"{int((t['metric'] == metric).sum()):,}"
+                           for metric, label in zip(METRICS, ("smoothed", "Euclidean")))
+    m = statistics.margins(table)
+    per_metric = []
+    for metric, label in zip(METRICS, ("smoothed", "Euclidean")):
+        mine = m[(m["metric"] == metric) & m["first_failure"].notna()]
+        unsafe = [f"{EFFECTS[r.effect]} (worst cell {int(r.worst_k)}/{int(r.worst_n)}"
+                  + _remedied_worst(t[(t["effect"] == r.effect) & (t["metric"] == metric)])
+                  + ")" for r in mine.itertuples()]
+        per_metric.append(f"{label}: {', '.join(unsafe) if unsafe else 'none'}")
+    hf = t[(t["effect"] == "none")].groupby("metric")["hf_energy_fraction"].median()
+    return [f"towards hardware: RotorPy as the plant, with motor lag, drag, parameter "
+            f"mismatch, wind, a late noisy estimate or a computation delay, one at a time "
+            f"({len(t):,} passages)",
+            f"collisions: {collisions}. Effects with an unsafe run (collided, left the workspace "
+            f"or faulted): {'; '.join(per_metric)}. Share of thrust power above 5 Hz with "
+            f"every effect off: smoothed {fmt.share(hf['smooth'])}, Euclidean "
+            f"{fmt.share(hf['euclidean'])}",
+            "`hardware_*/table.parquet`"]
+
+
+def _remedied_worst(t: pd.DataFrame) -> str:
+    """``"; with <remedy> k/n"``: the worst cell of one effect and metric (``t``: its runs)
+    with its remedy, or ``""`` when none was flown."""
+    remedied = t[t["remedy"] != "none"]
+    if remedied.empty:
+        return ""
+    worst = max((g for _, g in remedied.groupby("level")), key=lambda g: g["unsafe"].mean())
+    return (f"; with {worst.iloc[0]['remedy']} {int(worst['unsafe'].sum())}/{len(worst)}")

@@ -18,7 +18,7 @@ from pathlib import Path
 import pandas as pd
 
 from paper_repro import paths
-from paper_repro.evidence import beyond
+from paper_repro.evidence import beyond, hardware
 from paper_repro.evidence import formatting as fmt
 
 
@@ -406,7 +406,15 @@ BLOCKS: dict[str, Callable[[], str]] = {
                                               "solver_speed/swept_pillar"),
     "design_commands": lambda: commands("studies/moving_levers",
                                         "studies/moving_obstacles_definition"),
-    "tuning_command": lambda: commands("tuning")}
+    "tuning_command": lambda: commands("tuning"),
+    "hardware_agreement": hardware.agreement,
+    "hardware_margins": lambda: hardware.margins(hardware.runs()),
+    "hardware_cells": lambda: hardware.cells(hardware.runs()),
+    "hardware_breaks": lambda: hardware.breaks(hardware.runs(), hardware.lidar_range()),
+    "hardware_claim": lambda: hardware.claim(hardware.runs()),
+    "hardware_combined": lambda: hardware.combined(hardware.runs((hardware.COMBINED,))),
+    "hardware_commands": lambda: commands("hardware", *(
+        f"studies/{s}" for s in (*hardware.STUDIES, hardware.COMBINED)))}
 """Every generated block of the README, by name."""
 
 _BLOCK = re.compile(r"(<!-- begin (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-- end (?P=name) -->)",

@@ -203,6 +203,7 @@ def plot_cells(cells, columns=("collision_rate", "hf_energy_fraction")):
                                                         2.4 * len(columns)),
                              sharex=True, constrained_layout=True)
     labels = {"collision_rate": "collision rate", "completed_rate": "completion rate",
+              "unsafe_rate": "unsafe rate",
               "hf_energy_fraction": "share of thrust power > 5 Hz (median)",
               "min_clearance_m": "min clearance, m (median)"}
     for ax, col in zip(np.atleast_1d(axes), columns, strict=True):
