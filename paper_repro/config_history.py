@@ -45,6 +45,7 @@ ADDED = {
     ("solver", "shared_barrier"): False,
     ("plant", None): None,
     ("simulation", "workspace_exit"): None,
+    ("plant", "estimate_filter_time"): None,
 }
 """Settings added after the committed evidence was flown, (part, name) → the value that flies
 as before (the golden flights prove it). A run whose setting has that value is keyed as it was

@@ -7,7 +7,12 @@ import numpy as np
 import pytest
 
 from paper_repro.config import Config, PlantParams, SimulationParams
-from paper_repro.sim.imperfect import DelayedInput, EstimatedState, LatencyCompensation
+from paper_repro.sim.imperfect import (
+    DelayedInput,
+    EstimatedState,
+    EstimateFilter,
+    LatencyCompensation,
+)
 from paper_repro.sim.loop import simulate
 from paper_repro.sim.plant import QuadrotorPlant, plant_for, wind_of
 from paper_repro.vehicles.quadrotor import quadrotor_model
@@ -74,6 +79,10 @@ def test_a_delayed_input_arrives_that_many_steps_late_after_the_rest_input():
     (lambda: PlantParams(compensate_latency=True), "compensate_latency needs a latency"),
     (lambda: PlantParams(delay_steps=1, compensate_latency=1), "compensate_latency must be"),
     (lambda: LatencyCompensation(Recorder(), Recorder(), 0, [0.0]), "steps"),
+    (lambda: PlantParams(estimate_filter_time=0.05), "estimate_filter_time filters a noisy"),
+    (lambda: PlantParams(estimation="mocap", estimate_filter_time=-0.05),
+     "estimate_filter_time must be"),
+    (lambda: EstimateFilter(Recorder(), Recorder(), 0.01, 0.0, 0, [0.0]), "time_constant"),
     (lambda: PlantParams(simulator="rotorpy", wind=(1.0, float("nan"), 0.0),
                          rotor_drag=1e-4), "wind must be 3 finite numbers"),
 ])
@@ -116,6 +125,59 @@ def test_the_compensated_state_is_the_one_the_next_input_meets(latency, delay):
         truth.append(x)
     for k in range(len(given) - delay):
         np.testing.assert_allclose(given[k], truth[k + delay], atol=1e-12)
+
+
+@pytest.mark.parametrize("latency, delay", [(0, 0), (2, 0), (1, 2)])
+def test_without_noise_the_filter_is_the_state_its_estimate_is_of(latency, delay):
+    """With the nominal model as the plant and no noise, the prediction through the input
+    that acted is exact whatever the gain: the filter gives the state L steps ago, the one the
+    estimate is of (and, compensated over L + d, the state the next input meets)."""
+    x0, rest = np.zeros(2), np.zeros(2)
+    plant = EstimatedState(Recorder(), np.zeros(2), latency)
+    if delay:
+        plant = DelayedInput(plant, delay, rest)
+    filtered = EstimateFilter(plant, Recorder(), 0.01, 0.2, latency + delay, rest)
+    compensated = LatencyCompensation(filtered, Recorder(), latency + delay, rest) \
+        if latency + delay else filtered
+    compensated.reset(x0)
+    rng = np.random.default_rng(2)
+    x, given, seen, truth = x0, [], [], [x0]
+    for _ in range(12):
+        given.append(compensated.measure(x))
+        seen.append(filtered.measure(x))  # read twice in a step: corrected once
+        x = compensated.step(x, rng.normal(size=2))
+        truth.append(x)
+    for k in range(len(given)):
+        np.testing.assert_allclose(seen[k], truth[max(k - latency, 0)], atol=1e-12)
+        if k + delay < len(truth):
+            np.testing.assert_allclose(given[k], truth[k + delay], atol=1e-12)
+
+
+def test_the_filter_leaves_sigma_times_the_root_of_k_over_two_minus_k_of_white_noise():
+    """At rest (x + 0 = x), the error obeys e = (1 − K)·e + K·n: a white noise of σ leaves
+    σ·√(K/(2 − K)) once the filter has settled."""
+    sigma, ts, tau = 0.03, 0.01, 0.05
+    k = 1 - np.exp(-ts / tau)
+    filtered = EstimateFilter(EstimatedState(Recorder(), [sigma], 0, seed=3), Recorder(), ts,
+                              tau, 0, [0.0])
+    filtered.reset(np.zeros(1))
+    x, errors = np.zeros(1), []
+    for _ in range(20000):
+        x = filtered.step(x, np.zeros(1))
+        errors.append(filtered.measure(x)[0])
+    assert np.std(errors[100:]) == pytest.approx(sigma * np.sqrt(k / (2 - k)), rel=0.05)
+
+
+def test_the_filter_sits_inside_the_compensation_and_stays_out_of_the_run_key_when_off():
+    cfg = Config(plant=PlantParams(estimation="vio", delay_steps=1, compensate_latency=True,
+                                   estimate_filter_time=0.05))
+    plant = plant_for(quadrotor_model(), cfg)
+    assert isinstance(plant, LatencyCompensation) and isinstance(plant.plant, EstimateFilter)
+    assert plant.plant.steps == 3 + 1 and isinstance(plant.plant.nominal, QuadrotorPlant)
+    assert plant.plant.gain == pytest.approx(1 - np.exp(-cfg.nmpc.ts / 0.05))
+    off = Config(plant=PlantParams(estimation="vio", delay_steps=1))
+    assert "estimate_filter_time" not in off.key_dict()["plant"]
+    assert cfg.key_dict()["plant"]["estimate_filter_time"] == 0.05
 
 
 def test_the_compensation_wraps_the_plant_and_predicts_with_the_nominal_model():
@@ -171,12 +233,12 @@ def test_the_command_line_names_the_plant():
     args = parser.parse_args(["--out", "unused", "--plant", "rotorpy", "--motor-lag", "0.03",
                               "--rotor-drag", "1e-4", "--wind", "3", "--turbulence", "light",
                               "--estimation", "vio", "--delay", "2", "--hover-thrust", "2",
-                              "--motor-lag-compensation", "0.03",
+                              "--motor-lag-compensation", "0.03", "--estimate-filter", "0.05",
                               "--set", "plant.seed=4"])
     assert run_config(args).plant == PlantParams(
         simulator="rotorpy", motor_lag=0.03, rotor_drag=1e-4, wind=(0.0, 3.0, 0.0),
         turbulence="light", estimation="vio", delay_steps=2, hover_thrust_time=2.0,
-        motor_lag_compensation=0.03, seed=4)
+        motor_lag_compensation=0.03, estimate_filter_time=0.05, seed=4)
     with pytest.raises(ValueError, match="--motor-lag -0.1.*motor_lag must be"):
         run_config(parser.parse_args(["--out", "unused", "--plant", "rotorpy",
                                       "--motor-lag", "-0.1"]))

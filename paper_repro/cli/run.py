@@ -120,6 +120,9 @@ def add_plant_arguments(parser) -> None:
                                               "(default), mocap or vio (noise and latency)")
     parser.add_argument("--delay", type=non_negative_int, default=None, metavar="STEPS",
                         help="computation delay, in steps of T_s (default 0)")
+    parser.add_argument("--estimate-filter", type=float, default=None, metavar="TAU",
+                        help="filter the estimate with the nominal model and time constant "
+                             "TAU s (a remedy for its noise; e.g. 0.05)")
     parser.add_argument("--compensate-latency", action="store_true", default=None,
                         help="the controller predicts the state over the estimate's latency "
                              "and the delay with its nominal model (a remedy)")
@@ -212,6 +215,8 @@ def run_config(args) -> Config:
                    ("--turbulence", "plant", "turbulence", args.turbulence),
                    ("--estimation", "plant", "estimation", args.estimation),
                    ("--delay", "plant", "delay_steps", args.delay),
+                   ("--estimate-filter", "plant", "estimate_filter_time",
+                    args.estimate_filter),
                    ("--compensate-latency", "plant", "compensate_latency",
                     args.compensate_latency),
                    ("--hover-thrust", "plant", "hover_thrust_time", args.hover_thrust),

@@ -303,6 +303,10 @@ class PlantParams:
     delay_steps : computation delay, in steps of T_s (0, 1 or 2 typical): the input computed
         from the measurement at step k is applied from step k + delay_steps; hover thrust
         until then.
+    estimate_filter_time : τ, s, or ``None`` (default). A number > 0: a remedy for the
+        estimate's noise. The estimate is filtered with the nominal model and time constant
+        τ (:class:`~paper_repro.sim.imperfect.EstimateFilter`). Needs an estimate other than
+        ``"perfect"``.
     compensate_latency : ``False`` (default). ``True``: a remedy for the latency. The
         controller is given the state its next input will meet: the measured state rolled
         forward with the nominal model through the inputs sent over the estimate's latency
@@ -338,6 +342,7 @@ class PlantParams:
     gust_clearance: float | None = None
     estimation: str = "perfect"
     delay_steps: int = 0
+    estimate_filter_time: float | None = None
     compensate_latency: bool = False
     hover_thrust_time: float | None = None
     motor_lag_compensation: float | None = None
@@ -375,7 +380,10 @@ class PlantParams:
         if self.compensate_latency and self.latency_steps() == 0:
             raise ValueError("compensate_latency needs a latency to compensate: an estimation "
                              "other than 'perfect' or delay_steps above 0")
-        for name in ("hover_thrust_time", "motor_lag_compensation"):
+        if self.estimate_filter_time is not None and self.estimation == "perfect":
+            raise ValueError("estimate_filter_time filters a noisy estimate: set estimation "
+                             f"to one of {[e for e in ESTIMATES if e != 'perfect']}")
+        for name in ("estimate_filter_time", "hover_thrust_time", "motor_lag_compensation"):
             value = getattr(self, name)
             if value is not None and not (is_number(value) and 0 < value < math.inf):
                 raise ValueError(f"{name} must be None or a finite number of seconds > 0, "

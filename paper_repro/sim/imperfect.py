@@ -9,8 +9,11 @@ loop does not change:
   (the time a solve and its transport take); the rest input before that. The result logs
   the input the controller computed, not the one applied.
 
-Three remedies are plant wrappers too:
+Four remedies are plant wrappers too:
 
+* :class:`EstimateFilter`: the noisy estimate is filtered with the nominal model: each step
+  predicts the state through the input applied, then moves the prediction a fixed share of
+  the way to the new measurement.
 * :class:`LatencyCompensation`: the controller is given the state its next input will meet,
   predicted with the nominal model over the known latency through the inputs already sent.
 * :class:`HoverThrustEstimate`: the thrusts sent are scaled by an estimate of how much
@@ -20,8 +23,8 @@ Three remedies are plant wrappers too:
   with a first-order lag of time constant τ̂ make the thrust the plan asked for.
 
 :func:`~paper_repro.sim.plant.plant_for` builds them from ``config.plant``
-(``estimation``, ``delay_steps``, ``compensate_latency``, ``hover_thrust_time``,
-``motor_lag_compensation``).
+(``estimation``, ``delay_steps``, ``estimate_filter_time``, ``compensate_latency``,
+``hover_thrust_time``, ``motor_lag_compensation``).
 """
 
 from __future__ import annotations
@@ -112,6 +115,78 @@ class DelayedInput:
     def measure(self, x) -> np.ndarray:
         measure = getattr(self.plant, "measure", None)
         return measure(x) if callable(measure) else x
+
+
+class EstimateFilter:
+    """``plant``, measured through a filter of its noisy estimate with the nominal model: a
+    remedy for the estimate's noise.
+
+    The estimate at step k is of the state L steps ago, and the input sent at step j acts from
+    step j + d. Between two estimates the filter predicts its state x̂ with the nominal model
+    through the input that acted; then it moves the prediction a share K of the way to the new
+    estimate, x̂ ← x̂⁻ + K·(y − x̂⁻), with K = 1 − exp(−T_s/τ) (a first-order filter of time
+    constant τ, whose prediction is the model's rather than a constant). With the nominal
+    model as the plant and no noise, x̂ is the state the estimate is of; white noise of σ
+    leaves about σ·√(K/(2 − K)). The filtered state is as late as the estimate: give it
+    to :class:`LatencyCompensation` to predict over the latency.
+
+    Parameters
+    ----------
+    plant : the plant flown (with its estimate and its delay).
+    nominal : a plant of the nominal model (``step(x, u)`` over T_s), used to predict.
+    ts : s, the sampling period T_s, > 0.
+    time_constant : τ, s, > 0.
+    steps : L + d, the estimate's latency and the delay in steps of T_s, an integer >= 0.
+    rest_input : (n_u,) the input sent before the flight (the hover thrusts).
+    """
+
+    def __init__(self, plant, nominal, ts: float, time_constant: float, steps: int,
+                 rest_input):
+        if not (ts > 0 and time_constant > 0 and np.isfinite(time_constant)):
+            raise ValueError(f"ts and time_constant must be finite numbers of seconds > 0, got "
+                             f"{ts!r} and {time_constant!r}")
+        if not (isinstance(steps, int) and not isinstance(steps, bool) and steps >= 0):
+            raise ValueError(f"steps must be an integer >= 0 (L + d), got {steps!r}")
+        self.plant, self.nominal, self.steps = plant, nominal, steps
+        self.gain = 1.0 - float(np.exp(-ts / time_constant))
+        self.rest_input = np.asarray(rest_input, float)
+        self._sent: deque = deque(maxlen=steps + 1)
+        self._estimate = self._prediction = None
+
+    def reset(self, x0) -> None:
+        """Start a flight at x0, known: the filter starts there, the rotors at rest."""
+        self._sent.clear()
+        self._sent.extend([self.rest_input.copy()] * (self.steps + 1))
+        self._estimate = np.array(x0, float)
+        self._prediction = None
+        if callable(getattr(self.plant, "reset", None)):
+            self.plant.reset(x0)
+
+    def step(self, x, u) -> np.ndarray:
+        """Send ``u``, step the plant, and predict the filter's state one step on, through
+        the input that acted over the step its next estimate is of (sent L + d steps ago)."""
+        if self._estimate is None:
+            self.reset(x)
+        self._sent.append(np.array(u, float))
+        if self._prediction is None:  # the estimate of this step was never read
+            self._prediction = self._estimate
+        self._prediction = np.asarray(self.nominal.step(self._prediction, self._sent[0]),
+                                      float)
+        return self.plant.step(x, u)
+
+    def measure(self, x) -> np.ndarray:
+        """The filtered estimate while the vehicle is in ``x`` (read as often as needed within
+        a step: the correction is made once); a non-finite estimate is handed on as it is."""
+        if self._estimate is None:
+            self.reset(x)
+        if self._prediction is not None:
+            measure = getattr(self.plant, "measure", None)
+            y = np.array(measure(x) if callable(measure) else x, float)
+            if not np.isfinite(y).all():
+                return y
+            self._estimate = self._prediction + self.gain * (y - self._prediction)
+            self._prediction = None
+        return self._estimate.copy()
 
 
 class LatencyCompensation:

@@ -188,6 +188,8 @@ def plant_for(model: VehicleModel, config: Config, altitude: float = 2.0, scene=
       (:class:`~paper_repro.sim.imperfect.EstimatedState`).
     * ``plant.delay_steps``: the inputs arrive late
       (:class:`~paper_repro.sim.imperfect.DelayedInput`).
+    * ``plant.estimate_filter_time``: the estimate is filtered with the nominal model
+      (:class:`~paper_repro.sim.imperfect.EstimateFilter`).
     * ``plant.compensate_latency``: the controller is given the state predicted over both
       latencies with the nominal model
       (:class:`~paper_repro.sim.imperfect.LatencyCompensation`).
@@ -201,6 +203,7 @@ def plant_for(model: VehicleModel, config: Config, altitude: float = 2.0, scene=
     from paper_repro.sim.imperfect import (
         DelayedInput,
         EstimatedState,
+        EstimateFilter,
         HoverThrustEstimate,
         LatencyCompensation,
         MotorLagCompensation,
@@ -238,6 +241,13 @@ def plant_for(model: VehicleModel, config: Config, altitude: float = 2.0, scene=
     rest_input = model.rest(np.zeros(model.nx))[1]
     if p.delay_steps:
         plant = DelayedInput(plant, p.delay_steps, rest_input)
+
+    def nominal():  # the NMPC's own model, for the remedies that predict with it
+        return QuadrotorPlant(config.quadrotor, ts) if quadrotor else ModelPlant(model, ts)
+
+    if p.estimate_filter_time is not None:
+        plant = EstimateFilter(plant, nominal(), ts, p.estimate_filter_time, p.latency_steps(),
+                               rest_input)
     if p.hover_thrust_time is not None:
         if not quadrotor:
             raise ValueError(f"plant.hover_thrust_time is for the quadrotor, not "
@@ -247,8 +257,7 @@ def plant_for(model: VehicleModel, config: Config, altitude: float = 2.0, scene=
                                     (model.input_lower, model.input_upper), p.latency_steps(),
                                     rest_input)
     if p.compensate_latency:
-        nominal = QuadrotorPlant(config.quadrotor, ts) if quadrotor else ModelPlant(model, ts)
-        plant = LatencyCompensation(plant, nominal, p.latency_steps(), rest_input)
+        plant = LatencyCompensation(plant, nominal(), p.latency_steps(), rest_input)
     return plant
 
 
