@@ -83,3 +83,20 @@ def test_margins_and_the_readme_row_count_the_unsafe_runs(table):
     assert "smoothed: motor lag (worst cell 6/6; with lag compensated 0/6)" in row[1]
     assert "Euclidean: motor lag (worst cell 6/6; with lag compensated 1/6)" in row[1]
     assert row[1].endswith("chatter too (most of their power above 5 Hz) with: no effect")
+
+
+def test_every_effect_at_once_counts_collisions_apart_from_the_unsafe_runs(table):
+    rows = []
+    for remedy, unsafe in (("none", 6), ("all", 1)):
+        for metric in H.METRICS:
+            rows += _cell("combined", 1.0, "light", metric, unsafe=unsafe, remedy=remedy)
+    t = pd.DataFrame(rows)
+    crash = t["name"] == "combined-1.0-all-euclidean-0"
+    t.loc[crash, ["collision", "outcome"]] = [True, "collision"]
+    t["unsafe"] = t["collision"] | (t["outcome"] == "left_workspace")
+    lines = H.combined(pd.concat([table, t])).splitlines()
+    assert len(lines) == 2 + 2  # the other effects are not its rows
+    assert lines[2].startswith("| every effect at once, light | 0/6 [0, 46] % / 0/6 [0, 46] % "
+                               "| 6/6 [54, 100] % / 6/6 [54, 100] % |")
+    assert lines[3].startswith("| every effect at once, light, every remedy | 0/6 [0, 46] % / "
+                               "1/6 [0, 64] % | 1/6 [0, 64] % / 1/6 [0, 64] % |")

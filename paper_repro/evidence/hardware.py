@@ -8,9 +8,9 @@
 * :func:`breaks`: what breaks first, and what its remedy buys, in sentences;
 * :func:`combined`: every effect at once.
 
-They read the studies' run tables (``figures/studies/<study>/table.parquet``) and what their
-notebook made from them (``<study>_paired.csv``). A run is *unsafe* when it collides, leaves
-the workspace (into the ground, say) or ends on a fault
+They read the studies' run tables (``figures/studies/<study>/table.parquet``, :func:`runs`).
+A run is *unsafe* when it collides, leaves the workspace (into the ground, say) or ends on a
+fault
 (:func:`paper_repro.analysis.statistics.margins`).
 """
 
@@ -28,6 +28,8 @@ from paper_repro.evidence import formatting as fmt
 
 METRICS = ("smooth", "euclidean")
 """The arms, in the order of every "smoothed / Euclidean" column."""
+LABELS = {"smooth": "smoothed D", "euclidean": "Euclidean ½d²"}
+"""Each arm's name in a sentence."""
 
 STUDIES = ("hardware_vehicle", "hardware_air_latency")
 """The studies of one effect at a time (``studies.catalogue.HARDWARE_GROUPS``)."""
@@ -65,15 +67,25 @@ def lidar_range(study: str = STUDIES[0], root: Path | None = None) -> float:
 
 def runs(studies=STUDIES, root: Path | None = None) -> pd.DataFrame:
     """The run tables of ``studies`` (those committed), one row per run, with the boolean
-    column ``unsafe``."""
+    columns ``collision`` (False for a failed run) and ``unsafe``."""
     root = paths.figures_dir() / "studies" if root is None else Path(root)
     tables = [pd.read_parquet(root / s / "table.parquet") for s in studies
               if (root / s / "table.parquet").is_file()]
     t = pd.concat(tables, ignore_index=True).drop_duplicates("name")  # a shared baseline once
     ok = t["status"] == "ok"
-    t["unsafe"] = ok & (t["collision"].fillna(False).astype(bool)
-                        | t["outcome"].isin(["left_workspace", "fault"]))
+    t["collision"] = ok & t["collision"].fillna(False).astype(bool)
+    t["unsafe"] = t["collision"] | (ok & t["outcome"].isin(["left_workspace", "fault"]))
     return t
+
+
+def _alone(table: pd.DataFrame) -> pd.DataFrame:
+    """The flown runs (status ``ok``) of one effect at a time, the baseline included."""
+    return table[(table["effect"] != "combined") & (table["status"] == "ok")]
+
+
+def _listed(names: list[str]) -> str:
+    """``"a, b or c"``."""
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} or {names[-1]}"
 
 
 def margins(table: pd.DataFrame) -> str:
@@ -150,8 +162,7 @@ def combined(table: pd.DataFrame) -> str:
     rows = _cell_rows(t, cell_name)
     for row, (_, g) in zip(rows, t.groupby(["effect", "level", "remedy"], sort=False),
                            strict=True):
-        row.insert(1, " / ".join(_share_of(g[g["metric"] == m]["collision"].fillna(False)
-                                           .astype(bool)) for m in METRICS))
+        row.insert(1, " / ".join(_share_of(g[g["metric"] == m]["collision"]) for m in METRICS))
     return fmt.markdown_table(["cell", "collisions (smoothed / Euclidean)", *HEADER], rows)
 
 
@@ -195,27 +206,24 @@ def breaks(table: pd.DataFrame, lidar_range: float) -> str:
     """What breaks first, as a list: the collisions over every passage of one effect alone,
     then per metric each effect with an unsafe run (its unsafe levels, and the same levels
     with its remedy), and the effects with none."""
-    t = table[(table["effect"] != "combined") & (table["status"] == "ok")]
-    t = t.assign(collision=t["collision"].fillna(False).astype(bool))
+    t = _alone(table)
     counts = []
-    for metric, label in zip(METRICS, ("smoothed D", "Euclidean ½d²")):
+    for metric, label in LABELS.items():
         c = t.loc[t["metric"] == metric, "collision"]
         high = stats.binomtest(int(c.sum()), len(c)).proportion_ci(0.95, method="exact").high
         counts.append(f"{label} {int(c.sum())} in {len(c):,} (the rate is below "
                       f"{100 * high:.2g} % at 95 % confidence)")
     lines = [f"- Collisions, each effect alone: {'; '.join(counts)}."]
     m = statistics.margins(table)
-    for metric, label in zip(METRICS, ("smoothed D", "Euclidean ½d²")):
+    for metric, label in LABELS.items():
         mine = m[m["metric"] == metric]
         lines.append(f"- With the {label}:")
         for effect in mine.loc[mine["first_failure"].notna(), "effect"]:
             lines.append("  - " + _effect_breaks(
                 t[(t["effect"] == effect) & (t["metric"] == metric)], lidar_range))
         safe = [EFFECTS[e] for e in mine.loc[mine["first_failure"].isna(), "effect"]]
-        lines.append(f"  - no unsafe run with {', '.join(safe[:-1])} or {safe[-1]}, at any "
-                     "level flown." if len(safe) > 1 else
-                     f"  - no unsafe run with {safe[0]}, at any level flown." if safe else
-                     "  - every effect has an unsafe run at some level.")
+        lines.append(f"  - no unsafe run with {_listed(safe)}, at any level flown." if safe
+                     else "  - every effect has an unsafe run at some level.")
     return "\n".join(lines)
 
 
@@ -249,14 +257,13 @@ def _effect_breaks(t: pd.DataFrame, lidar_range: float) -> str:
 def overview(table: pd.DataFrame) -> list[str]:
     """The README's row of the hardware studies: what was flown, what it measured, the
     tables."""
-    t = table[(table["effect"] != "combined") & (table["status"] == "ok")]
-    collided = t["collision"].fillna(False).astype(bool)
-    collisions = ", ".join(f"{label} {int(collided[t['metric'] == metric].sum())}/"
-                           f"{int((t['metric'] == metric).sum()):,}"
-                           for metric, label in zip(METRICS, ("smoothed", "Euclidean")))
+    t = _alone(table)
+    names = {"smooth": "smoothed", "euclidean": "Euclidean"}
+    collisions = ", ".join(f"{names[metric]} {int(t.loc[t['metric'] == metric, 'collision'].sum())}"
+                           f"/{int((t['metric'] == metric).sum()):,}" for metric in METRICS)
     m = statistics.margins(table)
     per_metric = []
-    for metric, label in zip(METRICS, ("smoothed", "Euclidean")):
+    for metric, label in names.items():
         mine = m[(m["metric"] == metric) & m["first_failure"].notna()]
         unsafe = [f"{EFFECTS[r.effect]} (worst cell {int(r.worst_k)}/{int(r.worst_n)}"
                   + _remedied_worst(t[(t["effect"] == r.effect) & (t["metric"] == metric)])
