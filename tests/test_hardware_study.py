@@ -11,7 +11,10 @@ from paper_repro import studies as S
 from paper_repro.config import PlantParams
 from paper_repro.studies.catalogue import (
     COMBINED,
+    COMBINED_REMEDIES,
     EFFECTS,
+    ESTIMATE_FILTER_TIME,
+    EVERY_REMEDY,
     HARDWARE_GROUPS,
     HARDWARE_STEPS,
     HEADLINE,
@@ -20,6 +23,7 @@ from paper_repro.studies.catalogue import (
     hardware,
     hardware_combined,
     make_study,
+    with_remedy,
 )
 
 
@@ -49,7 +53,7 @@ def test_each_effect_alone_at_each_level_on_the_same_passages_for_both_metrics(g
     expected = {("none", 0.0, "none")} | {
         (effect, level, remedy) for effect in HARDWARE_GROUPS[group]
         for level, _, _ in EFFECTS[effect]
-        for remedy in (("none", REMEDIED[effect]) if effect in REMEDIED else ("none",))}
+        for remedy in ("none", *REMEDIED.get(effect, ()))}
     assert set(cells) == expected
     for by_metric in cells.values():  # paired: the same three passages with both metrics
         assert by_metric == {"smooth": [0, 1, 2], "euclidean": [0, 1, 2]}
@@ -68,6 +72,8 @@ def test_each_effect_alone_at_each_level_on_the_same_passages_for_both_metrics(g
                                                if remedy != "none" else set())
             if remedy == "lag compensated":  # the lag inverted for its own time constant
                 assert plant.motor_lag_compensation == plant.motor_lag
+            if remedy == "filtered":
+                assert plant.estimate_filter_time == ESTIMATE_FILTER_TIME
     for levels in EFFECTS.values():  # the levels rise with the severity
         values = [v for v, _, _ in levels]
         assert values == sorted(values) and len(set(values)) == len(values)
@@ -76,17 +82,32 @@ def test_each_effect_alone_at_each_level_on_the_same_passages_for_both_metrics(g
 def test_every_effect_at_once_with_every_remedy_on_300_passages_and_each_other_cell_on_50():
     cells, plants = _cells(hardware_combined())
     assert set(cells) == {("combined", float(i + 1), r) for i in range(len(COMBINED))
-                          for r in ("none", "all")}
+                          for r in COMBINED_REMEDIES}
     for (_, level, remedy), by_metric in cells.items():
         name = list(COMBINED)[int(level) - 1]
         n = 300 if (name, remedy) == HEADLINE else 50
         assert by_metric == {"smooth": list(range(n)), "euclidean": list(range(n))}
         plant = plants[("combined", level, remedy)][7]
-        assert plant.compensate_latency == (remedy == "all")
-        assert (plant.hover_thrust_time is not None) == (remedy == "all")
-        assert plant.motor_lag_compensation == (plant.motor_lag if remedy == "all" else None)
+        remedied = remedy != "none"
+        assert plant.compensate_latency == remedied
+        assert (plant.hover_thrust_time is not None) == remedied
+        assert plant.motor_lag_compensation == (plant.motor_lag if remedied else None)
+        assert plant.estimate_filter_time == (ESTIMATE_FILTER_TIME if "filtered" in remedy
+                                              else None)
         for setting, value in COMBINED[name].items():
             assert getattr(plant, setting) == value
+
+
+def test_a_remedy_is_named_or_refused_by_name():
+    effect = {"estimation": "mocap", "delay_steps": 1}
+    every = with_remedy(effect, "all")  # no motor lag here: nothing to compensate
+    assert set(every) - set(effect) == {k for n in EVERY_REMEDY if n != "lag compensated"
+                                        for k in REMEDIES[n](effect)}
+    assert with_remedy(effect, "all + filtered") == {
+        **every, "estimate_filter_time": ESTIMATE_FILTER_TIME}
+    assert with_remedy(effect, "none") == effect
+    with pytest.raises(ValueError, match="remedy: 'filter'"):
+        with_remedy(effect, "all + filter")
 
 
 def test_one_controller_per_metric_whatever_the_plant():

@@ -41,6 +41,10 @@ EFFECTS = {"none": "every effect off", "motor_lag": "motor lag", "rotor_drag": "
            "gust": "gust", "estimation": "state estimate", "delay": "computation delay",
            "combined": "every effect at once"}
 """Each effect's name in the book (the ``effect`` column holds the catalogue's)."""
+COMBINED_REMEDIES = {"none": "", "all": ", every remedy",
+                     "all + filtered": ", every remedy and the estimate filter"}
+"""The remedies of every effect at once in the book (``studies.catalogue.COMBINED_REMEDIES``):
+``all`` is each remedy that inverts a known model."""
 
 
 def agreement(folder: Path | None = None) -> str:
@@ -149,8 +153,7 @@ def cell_name(r) -> str:
     if r["effect"] == "none":
         return EFFECTS["none"]
     if r["effect"] == "combined":
-        return (f"{EFFECTS['combined']}, {r['level_name']}"
-                + ("" if r["remedy"] == "none" else ", every remedy"))
+        return f"{EFFECTS['combined']}, {r['level_name']}" + COMBINED_REMEDIES[r["remedy"]]
     return (f"{EFFECTS[r['effect']]} {r['level_name']}"
             + ("" if r["remedy"] == "none" else f", {r['remedy']}"))
 
@@ -290,5 +293,6 @@ def _remedied_worst(t: pd.DataFrame) -> str:
     remedied = t[t["remedy"] != "none"]
     if remedied.empty:
         return ""
-    worst = max((g for _, g in remedied.groupby("level")), key=lambda g: g["unsafe"].mean())
+    worst = max((g for _, g in remedied.groupby(["level", "remedy"], sort=False)),
+                key=lambda g: g["unsafe"].mean())
     return (f"; with {worst.iloc[0]['remedy']} {int(worst['unsafe'].sum())}/{len(worst)}")
