@@ -10,6 +10,7 @@ import shlex
 import subprocess
 import sys
 
+import pandas as pd
 import pytest
 
 from paper_repro import paths
@@ -23,6 +24,7 @@ from paper_repro.evidence.sets import (
     EvidenceSet,
     last_wall_time_s,
     record_wall_time,
+    resumed,
 )
 
 
@@ -193,3 +195,21 @@ def test_a_failure_skips_what_reads_it_and_nothing_else(tmp_path):
 def test_jobs_must_be_positive():
     with pytest.raises(ValueError, match="jobs"):
         R.run([], jobs=0)
+
+
+def test_a_resumed_study_counts_the_flights_of_its_cached_runs(tmp_path):
+    """A study's last call that found runs cached says how many it flew, and how much longer
+    an empty cache would take: the cached runs' own flight times shared among the cores."""
+    study = tmp_path / "study"
+    study.mkdir()
+    (study / "timings.json").write_text(json.dumps({"wall_time_s": 60.0,
+                                                    "meta": {"cpu_count": 2}}))
+    pd.DataFrame({"name": list("abcd"), "simulated": [True, False, True, False],
+                  "wall_time_s": [10.0, 30.0, 20.0, 50.0]}).to_csv(study / "timings.csv")
+    assert resumed(study) == (2, 4, 40.0)  # (30 + 50) s over 2 cores
+    pd.DataFrame({"name": list("ab"), "simulated": [True, True],
+                  "wall_time_s": [1.0, 2.0]}).to_csv(study / "timings.csv")
+    assert resumed(study) is None  # every run flown: the wall time says it all
+    pd.DataFrame({"run": ["x"], "wall": [3.0]}).to_csv(study / "timings.csv")
+    assert resumed(study) is None  # not a study's timings
+    assert resumed(tmp_path) is None

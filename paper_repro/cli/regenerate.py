@@ -8,7 +8,7 @@ import os
 from paper_repro import paths
 from paper_repro.cli.args import positive_int
 from paper_repro.evidence.regenerate import plan, run
-from paper_repro.evidence.sets import SETS, last_wall_time_s
+from paper_repro.evidence.sets import SETS, last_wall_time_s, resumed
 
 HELP = ("make the stale evidence sets again (and those that read them), one job per core, "
         "the speed tables last and alone, then the README's tables")
@@ -31,8 +31,12 @@ def main(args) -> int:
             when = "last, alone" if item.timed else (
                 f"after {', '.join(item.after)}" if item.after else "at once")
             seconds = last_wall_time_s(paths.figures_dir() / item.folder)
+            part = resumed(paths.figures_dir() / item.folder) if seconds else None
+            if part:  # the last call found runs cached: count their flights too
+                seconds += part[2]
             known += seconds or 0.0
-            last = f"{seconds / 60:.1f} min" if seconds else "not recorded"
+            last = (f"{'about ' if part else ''}{seconds / 60:.1f} min" if seconds
+                    else "not recorded")
             print(f"  {item.label} ({when}; last run {last})\n"
                   f"      {item.command} {item.one_core}".rstrip())
         print(f"the recorded wall times add up to {known / 3600:.1f} h, one command at a "

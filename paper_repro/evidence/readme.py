@@ -262,8 +262,10 @@ def sensing_window() -> str:
 
 def regeneration() -> str:
     """Every evidence set: the command that made it (its ``evidence.json``) and how long it
-    took on the machine that made it (its ``timings.json``)."""
-    from paper_repro.evidence.sets import EVIDENCE_SETS, last_wall_time_s
+    took on the machine that made it (its ``timings.json``); for a study resumed from the
+    cache, how many runs that call flew and about how long an empty cache would take
+    (:func:`~paper_repro.evidence.sets.resumed`)."""
+    from paper_repro.evidence.sets import EVIDENCE_SETS, last_wall_time_s, resumed
 
     rows = []
     for name in EVIDENCE_SETS:
@@ -272,6 +274,10 @@ def regeneration() -> str:
             continue
         seconds = last_wall_time_s(folder)
         wall = f"{seconds / 60:.1f} min" if seconds else "—"
+        if seconds and (part := resumed(folder)):
+            flown, runs, cached = part
+            wall += (f" (resumed: {flown:,} of {runs:,} runs flown; about "
+                     f"{(seconds + cached) / 60:.0f} min from an empty cache)")
         rows.append([f"`figures/{name}`" if name else "`figures/`", f"`{made_by(name)}`", wall])
     return fmt.markdown_table(["evidence set", "made by", "wall time (2 cores, last run)"], rows)
 

@@ -137,6 +137,29 @@ def last_wall_time_s(folder: Path) -> float | None:
     return data.get("wall_time_s", data.get("wall_time_s_last_call")) or None
 
 
+def resumed(folder: Path) -> tuple[int, int, float] | None:
+    """A study whose last call found some of its runs in the cache: ``(flown, runs, cached)``,
+    the runs that call flew, the study's runs, and about how much longer a call from an empty
+    cache would take on the same machine (s): the cached runs' own flight times
+    (``timings.csv``'s ``wall_time_s``, each recorded when the run flew) shared among its
+    cores (``timings.json``). ``None`` for a set that is not a study, or whose last call flew
+    every run."""
+    import pandas as pd
+
+    folder = Path(folder)
+    if not ((folder / "timings.csv").is_file() and (folder / "timings.json").is_file()):
+        return None
+    t = pd.read_csv(folder / "timings.csv")
+    if not {"simulated", "wall_time_s"} <= set(t.columns):  # not a study's
+        return None
+    flown = int(t["simulated"].fillna(False).astype(bool).sum())
+    if flown == len(t):
+        return None
+    cores = json.loads((folder / "timings.json").read_text()).get("meta", {}).get("cpu_count")
+    cached = t.loc[~t["simulated"].fillna(False).astype(bool), "wall_time_s"].sum()
+    return flown, len(t), float(cached) / max(int(cores or 1), 1)
+
+
 RECORDED_BY = "paper_repro.evidence.sets.record_wall_time"
 """What :func:`record_wall_time` writes in the ``timings.json`` it owns."""
 
