@@ -81,11 +81,15 @@ STUDY_OUTPUTS = {
                     "guidance_scene_thrusts.png"),
     "11_timeline": ("timeline_levers.csv", "timeline_levers.png", "timeline_flights.csv",
                     "timeline_flights.png"),
+    "18_hardware": ("hardware_cells.csv", "hardware_cells.png", "hardware_margins.csv",
+                    "hardware_paired.csv", "hardware_thrusts_wind.csv",
+                    "hardware_thrusts_wind.png"),
 }
 # Study notebooks that also fly: a short mission, cached in the test's folder.
 STUDY_OVERRIDES = {"15_smooth_sensing": {"mission": "encounter", "mission_steps": 3000},
                    "16_moving_obstacles": {"crossing_steps": 1500, "frames": 8},
-                   "11_timeline": {"quick": True}, "17_guidance": {"scene_steps": 400}}
+                   "11_timeline": {"quick": True}, "17_guidance": {"scene_steps": 400},
+                   "18_hardware": {"wind_steps": 400}}
 
 
 @pytest.fixture(scope="session")
@@ -214,6 +218,12 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, executed
         scene = pd.read_csv(figures / "guidance_scene.csv")
         assert list(scene["arm"]) == ["paper", "map", "map+guide"]
         assert (scene["steps"] == 400).all() and scene["set_point_moves"].iloc[:2].eq(0).all()
+    elif name == "18_hardware":
+        cells = pd.read_csv(figures / "hardware_cells.csv")
+        assert set(cells["metric"]) == {"smooth", "euclidean"} and (cells["runs"] == 2).all()
+        assert (cells["unsafe_rate"] >= cells["collision_rate"]).all()  # a collision is unsafe
+        windy = pd.read_csv(figures / "hardware_thrusts_wind.csv")
+        assert list(windy["metric"]) == ["smooth", "euclidean"] and (windy["steps"] <= 400).all()
     elif name == "16_moving_obstacles":
         rates = pd.read_csv(figures / "moving_obstacles_rates.csv")
         assert set(rates["prediction"]) == set(PREDICTIONS) and (rates["n"] == 2).all()

@@ -418,8 +418,9 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "hardware_cells": lambda: hardware.cells(hardware.runs()),
     "hardware_breaks": lambda: hardware.breaks(hardware.runs(), hardware.lidar_range()),
     "hardware_claim": lambda: hardware.claim(hardware.runs()),
-    "hardware_commands": lambda: commands("hardware", *(f"studies/{s}"
-                                                        for s in hardware.STUDIES))}
+    "hardware_combined": lambda: hardware.combined(hardware.runs((hardware.COMBINED,))),
+    "hardware_commands": lambda: commands("hardware", *(
+        f"studies/{s}" for s in (*hardware.STUDIES, hardware.COMBINED)))}
 """Every generated block of the README, by name."""
 
 _BLOCK = re.compile(r"(<!-- begin (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-- end (?P=name) -->)",

@@ -58,7 +58,7 @@ class EvidenceSet:
 STUDY_NOTEBOOKS = {"monte_carlo": "09_monte_carlo", "eta_sweep": "10_eta_sweep",
                    "sensor_noise": "13_sensor_noise", "sensing_window": "15_smooth_sensing",
                    "moving_obstacles": "16_moving_obstacles", "timeline": "11_timeline",
-                   "guidance": "17_guidance"}
+                   "guidance": "17_guidance", "hardware_combined": "18_hardware"}
 """The notebook that draws each study's figures from its saved table."""
 
 
@@ -77,6 +77,8 @@ SETS = (
     EvidenceSet("studies/hardware_air_latency",
                 "python -m paper_repro study hardware_air_latency", _STUDY,
                 after=("studies/hardware_vehicle",)),
+    EvidenceSet("studies/hardware_combined", "python -m paper_repro study hardware_combined",
+                _STUDY, after=("studies/hardware_vehicle", "studies/hardware_air_latency")),
     EvidenceSet("solver_speed/encounter",
                 "python benchmarks/solver_speed.py --scenario encounter --steps 2000 --save",
                 timed=True),
