@@ -83,13 +83,14 @@ STUDY_OUTPUTS = {
                     "timeline_flights.png"),
     "18_hardware": ("hardware_cells.csv", "hardware_cells.png", "hardware_margins.csv",
                     "hardware_paired.csv", "hardware_thrusts_wind.csv",
-                    "hardware_thrusts_wind.png"),
+                    "hardware_thrusts_wind.png", "hardware_thrusts_estimate.csv",
+                    "hardware_thrusts_estimate.png"),
 }
 # Study notebooks that also fly: a short mission, cached in the test's folder.
 STUDY_OVERRIDES = {"15_smooth_sensing": {"mission": "encounter", "mission_steps": 3000},
                    "16_moving_obstacles": {"crossing_steps": 1500, "frames": 8},
                    "11_timeline": {"quick": True}, "17_guidance": {"scene_steps": 400},
-                   "18_hardware": {"wind_steps": 400}}
+                   "18_hardware": {"passage_steps": 400}}
 
 
 @pytest.fixture(scope="session")
@@ -224,6 +225,9 @@ def test_study_notebook_draws_from_the_saved_table(name, quick_studies, executed
         assert (cells["unsafe_rate"] >= cells["collision_rate"]).all()  # a collision is unsafe
         windy = pd.read_csv(figures / "hardware_thrusts_wind.csv")
         assert list(windy["metric"]) == ["smooth", "euclidean"] and (windy["steps"] <= 400).all()
+        noisy = pd.read_csv(figures / "hardware_thrusts_estimate.csv")
+        assert list(noisy["cell"]) == ["state estimate mocap", "state estimate mocap, filtered"]
+        assert (noisy["metric"] == "smooth").all() and (noisy["steps"] <= 400).all()
     elif name == "16_moving_obstacles":
         rates = pd.read_csv(figures / "moving_obstacles_rates.csv")
         assert set(rates["prediction"]) == set(PREDICTIONS) and (rates["n"] == 2).all()

@@ -173,14 +173,15 @@ CHATTER = 0.5
 """A run's thrusts *chatter* when most of their power (this share) lies above 5 Hz."""
 
 
-def claim(table: pd.DataFrame, n_resamples: int = 2000) -> str:
-    """Per cell of one effect alone, passage by passage: the Euclidean thrusts' share of power
-    above 5 Hz over the smoothed ones', its median over the passages with a percentile
-    bootstrap interval (:func:`paper_repro.analysis.statistics.paired`), and whether the
-    Euclidean thrusts chatter more (the whole interval above 1). Then the cells where the
-    smoothed thrusts chatter too (median share above :data:`CHATTER`): there the claim fails,
-    whatever the ratio."""
-    t = table[table["effect"] != "combined"]
+def claim(table: pd.DataFrame, n_resamples: int = 2000, combined: bool = False) -> str:
+    """Per cell of one effect alone (of every effect at once with ``combined``), passage by
+    passage: the Euclidean thrusts' share of power above 5 Hz over the smoothed ones', its
+    median over the passages with a percentile bootstrap interval
+    (:func:`paper_repro.analysis.statistics.paired`), and whether the Euclidean thrusts
+    chatter more (the whole interval above 1). Then the cells where the smoothed thrusts
+    chatter too (median share above :data:`CHATTER`): there the claim fails, whatever the
+    ratio."""
+    t = table[(table["effect"] == "combined") == combined]
     rows, chattering = [], []
     for _, g in t.groupby(["effect", "level", "remedy"], sort=False):
         p = statistics.paired(g, columns=("hf_energy_fraction",), n_resamples=n_resamples)

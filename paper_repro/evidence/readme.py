@@ -419,6 +419,8 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "hardware_breaks": lambda: hardware.breaks(hardware.runs(), hardware.lidar_range()),
     "hardware_claim": lambda: hardware.claim(hardware.runs()),
     "hardware_combined": lambda: hardware.combined(hardware.runs((hardware.COMBINED,))),
+    "hardware_combined_claim": lambda: hardware.claim(hardware.runs((hardware.COMBINED,)),
+                                                      combined=True),
     "hardware_commands": lambda: commands("hardware", *(
         f"studies/{s}" for s in (*hardware.STUDIES, hardware.COMBINED)))}
 """Every generated block of the README, by name."""
