@@ -87,16 +87,21 @@ def test_margins_and_the_readme_row_count_the_unsafe_runs(table):
 
 def test_every_effect_at_once_counts_collisions_apart_from_the_unsafe_runs(table):
     rows = []
-    for remedy, unsafe in (("none", 6), ("all", 1)):
-        for metric in H.METRICS:
-            rows += _cell("combined", 1.0, "light", metric, unsafe=unsafe, remedy=remedy)
+    for remedy, unsafe, n in (("none", 6, 6), ("all", 1, 9), ("all + filtered", 0, 6)):
+        for metric in H.METRICS:  # the headline, every remedy, on the most passages
+            rows += _cell("combined", 1.0, "light", metric, unsafe=unsafe, remedy=remedy, n=n)
     t = pd.DataFrame(rows)
     crash = t["name"] == "combined-1.0-all-euclidean-0"
     t.loc[crash, ["collision", "outcome"]] = [True, "collision"]
     t["unsafe"] = t["collision"] | (t["outcome"] == "left_workspace")
     lines = H.combined(pd.concat([table, t])).splitlines()
-    assert len(lines) == 2 + 2  # the other effects are not its rows
+    assert len(lines) == 2 + 3  # the other effects are not its rows
     assert lines[2].startswith("| every effect at once, light | 0/6 [0, 46] % / 0/6 [0, 46] % "
                                "| 6/6 [54, 100] % / 6/6 [54, 100] % |")
-    assert lines[3].startswith("| every effect at once, light, every remedy | 0/6 [0, 46] % / "
-                               "1/6 [0, 64] % | 1/6 [0, 64] % / 1/6 [0, 64] % |")
+    assert lines[3].startswith("| every effect at once, light, every remedy | 0/9 [0, 34] % / "
+                               "1/9 [0, 48] % | 1/9 [0, 48] % / 1/9 [0, 48] % |")
+    assert lines[4].startswith("| every effect at once, light, every remedy and the estimate "
+                               "filter | 0/6")
+    row = H.overview(table, t)
+    assert row[1].endswith("Every effect at once (light, every remedy): smoothed 0 collided "
+                           "and 1 unsafe in 9, Euclidean 1 collided and 1 unsafe in 9")

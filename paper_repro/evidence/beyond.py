@@ -553,5 +553,5 @@ def overview() -> str:
                  f"{fmt.num(hf['noisy-map'].median_sensor)}; total variation through the map "
                  f"×{fmt.num(tv.median_effect)} [{fmt.num(tv.low)}, {fmt.num(tv.high)}] the "
                  "perfect sensor's, per passage", "`sensor_noise_cost.csv`"])
-    rows.append(hardware.overview(hardware.runs()))
+    rows.append(hardware.overview(hardware.runs(), hardware.runs((hardware.COMBINED,))))
     return fmt.markdown_table(["beyond the paper", "measured here", "table"], rows)

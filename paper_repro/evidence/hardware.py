@@ -258,9 +258,10 @@ def _effect_breaks(t: pd.DataFrame, lidar_range: float) -> str:
     return text
 
 
-def overview(table: pd.DataFrame) -> list[str]:
+def overview(table: pd.DataFrame, together: pd.DataFrame | None = None) -> list[str]:
     """The README's row of the hardware studies: what was flown, what it measured, the
-    tables."""
+    tables. ``table``: the runs of one effect at a time; ``together``: those of every effect
+    at once (their headline cell's collisions, when given)."""
     t = _alone(table)
     names = {"smooth": "smoothed", "euclidean": "Euclidean"}
     collisions = ", ".join(f"{names[metric]} {int(t.loc[t['metric'] == metric, 'collision'].sum())}"
@@ -277,15 +278,31 @@ def overview(table: pd.DataFrame) -> list[str]:
     smooth = t[t["metric"] == "smooth"].groupby(["effect", "level", "remedy"], sort=False)
     chatter = list(dict.fromkeys(EFFECTS[effect] for (effect, _, _), g in smooth
                                  if g["hf_energy_fraction"].median() > CHATTER))
+    at_once = ""
+    if together is not None:
+        head = headline(together)
+        at_once = (f". Every effect at once ({cell_name(head.iloc[0]).split(', ', 1)[1]}): "
+                   + ", ".join(f"{names[m]} {int(g['collision'].sum())} collided and "
+                               f"{int(g['unsafe'].sum())} unsafe in {len(g):,}"
+                               for m in METRICS for g in [head[head["metric"] == m]]))
     return [f"towards hardware: RotorPy as the plant, with motor lag, drag, parameter "
             f"mismatch, wind, a late noisy estimate or a computation delay, one at a time "
-            f"({len(t):,} passages)",
+            f"({len(t):,} passages), then all at once",
             f"collisions: {collisions}. Effects with an unsafe run (collided, left the workspace "
             f"or faulted): {'; '.join(per_metric)}. Share of thrust power above 5 Hz with "
             f"every effect off: smoothed {fmt.share(hf['smooth'])}, Euclidean "
             f"{fmt.share(hf['euclidean'])}; the smoothed thrusts chatter too (most of their "
-            f"power above 5 Hz) with: {', '.join(chatter) if chatter else 'no effect'}",
+            f"power above 5 Hz) with: {', '.join(chatter) if chatter else 'no effect'}"
+            f"{at_once}",
             "`hardware_*/table.parquet`"]
+
+
+def headline(together: pd.DataFrame) -> pd.DataFrame:
+    """The runs of the cell of every effect at once flown on the most passages (the
+    catalogue's ``HEADLINE``)."""
+    t = together[together["effect"] == "combined"]
+    level, remedy = t.groupby(["level", "remedy"], sort=False).size().idxmax()
+    return t[(t["level"] == level) & (t["remedy"] == remedy)]
 
 
 def _remedied_worst(t: pd.DataFrame) -> str:
