@@ -572,12 +572,13 @@ def make_study(name: str, quick: bool = False, base: Config | None = None,
 
 STUDY_NOTEBOOK_QUICK = {"sensing_window": {"mission": "encounter", "mission_steps": 3000},
                         "moving_obstacles": {"crossing_steps": 1500}, "timeline": {"quick": True},
-                        "guidance": {"scene_steps": 400}, "hardware_combined": {"wind_steps": 400}}
+                        "guidance": {"scene_steps": 400},
+                        "hardware_combined": {"passage_steps": 400}}
 """Notebook parameters of a ``--quick`` study beyond its table (notebook 15 also flies one
 mission with and without the window: the encounter's first 30 s instead of the paper's;
 notebook 16 flies the crossing scene with each prediction: its first 15 s, past the meeting,
 instead of the whole passage; notebook 11 sweeps fewer values per lever; notebook 17 flies its
-deadlock scene's first 4 s; notebook 18 flies its windy passage's first 4 s)."""
+deadlock scene's first 4 s; notebook 18 flies the first 4 s of the passages it draws)."""
 
 
 def _passages(quick: bool, scenes: int | None, default: int, base: Config | None):
